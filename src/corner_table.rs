@@ -1,0 +1,339 @@
+//! The Corner Table (seeds 000 and 003): two flat arrays over corners `c = 3t + k`.
+//!
+//! ```text
+//!            v(p(c))                 V[c]  the welded vertex of corner c
+//!             /\                     O[c]  the corner facing c across the edge opposite c
+//!            /  \                          (the edge v(n(c)) - v(p(c)))
+//!           / t  \
+//!      v(c) ------ v(n(c))           n(c) next corner of t(c), p(c) = n(n(c))
+//!           \    /                   l(c) = o(n(c)), r(c) = o(p(c)), s(c) = p(l(c)) (swing)
+//!            \  /
+//!             \/
+//!           v(o(c))
+//! ```
+//!
+//! Sentinels, as in seed 003 and parry:
+//! - a **border** corner (its opposite edge bounds one face) has `O[c] == c`;
+//! - a corner whose opposite edge bounds three or more faces has `O[c] == NON_MANIFOLD`. It never gets
+//!   a made-up opposite; the faces of such an edge are listed by [`CornerTable::nonmanifold_edges`].
+//!
+//! A manifold edge is paired whatever the windings of its two faces: `O` records adjacency, and
+//! [`CornerTable::is_consistent`] says whether the pair traverses the edge in opposite directions.
+//!
+//! `O` is built in linear time: a counting sort of corners by the lower vertex of their opposite edge,
+//! then a sort of each (small) bucket by the higher vertex. Runs of equal edges are the edges; their
+//! lengths are the valences.
+
+/// `O[c]` for a corner whose opposite edge bounds three or more faces.
+pub const NON_MANIFOLD: u32 = u32::MAX;
+
+/// The largest number of triangles a table holds (corners and the sentinel must fit in `u32`).
+pub const MAX_TRIANGLES: usize = (u32::MAX as usize - 2) / 3;
+
+/// `V` and `O` for a set of triangles over welded vertices.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CornerTable {
+    v: Vec<u32>,
+    o: Vec<u32>,
+    vertex_count: usize,
+    edge_count: usize,
+    border_count: usize,
+    /// Corners of the non-manifold edges, edge after edge (CSR with `nm_offsets`).
+    nm_corners: Vec<u32>,
+    nm_offsets: Vec<u32>,
+}
+
+impl CornerTable {
+    /// Builds the table for triangles over vertices `0..vertex_count`.
+    ///
+    /// Each triangle must have three distinct vertices below `vertex_count` (the analysis leaves
+    /// degenerate faces out before building), and there must be at most [`MAX_TRIANGLES`].
+    pub fn build(triangles: &[[u32; 3]], vertex_count: usize) -> CornerTable {
+        assert!(
+            triangles.len() <= MAX_TRIANGLES,
+            "{} triangles exceed the corner table's limit of {MAX_TRIANGLES}",
+            triangles.len()
+        );
+        let v: Vec<u32> = triangles.iter().flatten().copied().collect();
+        let corners = v.len();
+
+        // Counting sort of corners by the lower vertex of their opposite edge.
+        let mut start = vec![0u32; vertex_count + 1];
+        for t in triangles {
+            for k in 0..3 {
+                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                start[a.min(b) as usize + 1] += 1;
+            }
+        }
+        for i in 0..vertex_count {
+            start[i + 1] += start[i];
+        }
+        // Each slot holds (higher vertex << 32 | corner), so sorting a bucket sorts by edge, then corner.
+        let mut keys = vec![0u64; corners];
+        let mut fill = start.clone();
+        for (c, t) in triangles.iter().enumerate().flat_map(|(i, t)| (0..3).map(move |k| (3 * i + k, t))) {
+            let k = c % 3;
+            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+            let slot = &mut fill[a.min(b) as usize];
+            keys[*slot as usize] = (u64::from(a.max(b)) << 32) | c as u64;
+            *slot += 1;
+        }
+        drop(fill);
+
+        let mut o = vec![0u32; corners];
+        let mut edge_count = 0;
+        let mut border_count = 0;
+        let mut nm_corners = Vec::new();
+        let mut nm_offsets = vec![0u32];
+        for w in start.windows(2) {
+            let bucket = &mut keys[w[0] as usize..w[1] as usize];
+            if bucket.len() > 1 {
+                bucket.sort_unstable();
+            }
+            let mut i = 0;
+            while i < bucket.len() {
+                let hi = bucket[i] >> 32;
+                let mut j = i + 1;
+                while j < bucket.len() && bucket[j] >> 32 == hi {
+                    j += 1;
+                }
+                let corner = |k: usize| bucket[k] as u32;
+                match j - i {
+                    1 => {
+                        o[corner(i) as usize] = corner(i);
+                        border_count += 1;
+                    }
+                    2 => {
+                        o[corner(i) as usize] = corner(i + 1);
+                        o[corner(i + 1) as usize] = corner(i);
+                    }
+                    _ => {
+                        for k in i..j {
+                            o[corner(k) as usize] = NON_MANIFOLD;
+                            nm_corners.push(corner(k));
+                        }
+                        nm_offsets.push(nm_corners.len() as u32);
+                    }
+                }
+                edge_count += 1;
+                i = j;
+            }
+        }
+        CornerTable {
+            v,
+            o,
+            vertex_count,
+            edge_count,
+            border_count,
+            nm_corners,
+            nm_offsets,
+        }
+    }
+
+    /// Number of triangles.
+    #[inline]
+    pub fn triangle_count(&self) -> usize {
+        self.v.len() / 3
+    }
+
+    /// Number of corners (`3 x triangles`).
+    #[inline]
+    pub fn corner_count(&self) -> usize {
+        self.v.len()
+    }
+
+    /// Number of vertices the table was built over (some may be used by no triangle).
+    #[inline]
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    /// Number of edges (distinct unordered vertex pairs of the triangles).
+    pub fn edge_count(&self) -> usize {
+        self.edge_count
+    }
+
+    /// Number of edges bounding exactly one triangle.
+    pub fn border_edge_count(&self) -> usize {
+        self.border_count
+    }
+
+    /// The corners of each non-manifold edge (three or more, sorted), one slice per edge.
+    pub fn nonmanifold_edges(&self) -> impl ExactSizeIterator<Item = &[u32]> + '_ {
+        self.nm_offsets
+            .windows(2)
+            .map(|w| &self.nm_corners[w[0] as usize..w[1] as usize])
+    }
+
+    /// The `V` array.
+    pub fn vertices(&self) -> &[u32] {
+        &self.v
+    }
+
+    /// The `O` array, with the sentinels described in the module docs.
+    pub fn opposites(&self) -> &[u32] {
+        &self.o
+    }
+
+    /// Triangle of corner `c`.
+    #[inline]
+    pub fn t(c: u32) -> u32 {
+        c / 3
+    }
+
+    /// Next corner around `t(c)`.
+    #[inline]
+    pub fn n(c: u32) -> u32 {
+        if c % 3 == 2 {
+            c - 2
+        } else {
+            c + 1
+        }
+    }
+
+    /// Previous corner around `t(c)`.
+    #[inline]
+    pub fn p(c: u32) -> u32 {
+        if c % 3 == 0 {
+            c + 2
+        } else {
+            c - 1
+        }
+    }
+
+    /// Vertex of corner `c`.
+    #[inline]
+    pub fn v(&self, c: u32) -> u32 {
+        self.v[c as usize]
+    }
+
+    /// Raw `O[c]`: the opposite corner, `c` itself on a border, or [`NON_MANIFOLD`].
+    #[inline]
+    pub fn o(&self, c: u32) -> u32 {
+        self.o[c as usize]
+    }
+
+    /// The opposite corner, or `None` on a border or non-manifold edge.
+    #[inline]
+    pub fn opposite(&self, c: u32) -> Option<u32> {
+        let o = self.o[c as usize];
+        (o != c && o != NON_MANIFOLD).then_some(o)
+    }
+
+    /// Whether the edge opposite `c` bounds one triangle.
+    #[inline]
+    pub fn is_border(&self, c: u32) -> bool {
+        self.o[c as usize] == c
+    }
+
+    /// Whether the edge opposite `c` bounds three or more triangles.
+    #[inline]
+    pub fn is_nonmanifold(&self, c: u32) -> bool {
+        self.o[c as usize] == NON_MANIFOLD
+    }
+
+    /// Left neighbour `o(n(c))`, or `None` across a non-manifold edge (on a border it is `n(c)`).
+    #[inline]
+    pub fn l(&self, c: u32) -> Option<u32> {
+        let x = self.o(Self::n(c));
+        (x != NON_MANIFOLD).then_some(x)
+    }
+
+    /// Right neighbour `o(p(c))`, or `None` across a non-manifold edge (on a border it is `p(c)`).
+    #[inline]
+    pub fn r(&self, c: u32) -> Option<u32> {
+        let x = self.o(Self::p(c));
+        (x != NON_MANIFOLD).then_some(x)
+    }
+
+    /// Swing `p(l(c))`: the next corner around `v(c)` on an oriented manifold mesh; `c` itself when the
+    /// edge `v(c)-v(n(c))` is a border (so repeated swings walk a hole's border); `None` across a
+    /// non-manifold edge.
+    #[inline]
+    pub fn s(&self, c: u32) -> Option<u32> {
+        self.l(c).map(Self::p)
+    }
+
+    /// Whether the manifold edge opposite `c` is traversed in opposite directions by its two faces
+    /// (`v(n(c)) == v(p(o(c)))`, seed 000 section 10). Border and non-manifold edges are not
+    /// manifold edges and give `true`.
+    #[inline]
+    pub fn is_consistent(&self, c: u32) -> bool {
+        match self.opposite(c) {
+            Some(b) => self.v(Self::n(c)) == self.v(Self::p(b)),
+            None => true,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Tetrahedron, outward: every corner has an opposite, `o(o(c)) == c`, and swinging three times
+    /// around any vertex returns to the start (each vertex has 3 faces).
+    #[test]
+    fn tetrahedron_is_closed_and_swings_around() {
+        let t = CornerTable::build(&[[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]], 4);
+        assert_eq!(t.edge_count(), 6);
+        assert_eq!(t.border_edge_count(), 0);
+        assert_eq!(t.nonmanifold_edges().len(), 0);
+        for c in 0..12 {
+            let o = t.opposite(c).expect("closed mesh");
+            assert_eq!(t.opposite(o), Some(c));
+            assert!(t.is_consistent(c));
+            assert_eq!(t.v(CornerTable::n(c)), t.v(CornerTable::p(o)));
+            let mut d = c;
+            for _ in 0..3 {
+                d = t.s(d).unwrap();
+                assert_eq!(t.v(d), t.v(c));
+            }
+            assert_eq!(d, c);
+        }
+    }
+
+    /// One triangle: three border edges, each corner its own opposite.
+    #[test]
+    fn single_triangle_is_all_border() {
+        let t = CornerTable::build(&[[0, 1, 2]], 3);
+        assert_eq!(t.edge_count(), 3);
+        assert_eq!(t.border_edge_count(), 3);
+        for c in 0..3 {
+            assert!(t.is_border(c));
+            assert_eq!(t.s(c), Some(c), "swing on a border stays put");
+        }
+    }
+
+    /// Three triangles on edge 0-1: one non-manifold edge with three corners, marked, never paired.
+    #[test]
+    fn three_faces_on_an_edge_are_marked_nonmanifold() {
+        let t = CornerTable::build(&[[0, 1, 2], [1, 0, 3], [0, 1, 4]], 5);
+        // Edges: 01 (x3), 12, 20, 03, 31, 14, 40 -> 7 edges, 6 border.
+        assert_eq!(t.edge_count(), 7);
+        assert_eq!(t.border_edge_count(), 6);
+        let nm: Vec<&[u32]> = t.nonmanifold_edges().collect();
+        assert_eq!(nm, vec![&[2u32, 5, 8][..]]);
+        for c in [2, 5, 8] {
+            assert!(t.is_nonmanifold(c));
+            assert_eq!(t.opposite(c), None);
+        }
+    }
+
+    /// Two triangles over edge 0-1 with the same winding: paired, but inconsistent.
+    #[test]
+    fn same_direction_pair_is_inconsistent() {
+        let t = CornerTable::build(&[[0, 1, 2], [0, 1, 3]], 4);
+        assert_eq!(t.opposite(2), Some(5));
+        assert!(!t.is_consistent(2));
+        assert!(!t.is_consistent(5));
+        let u = CornerTable::build(&[[0, 1, 2], [1, 0, 3]], 4);
+        assert!(u.is_consistent(2));
+    }
+
+    #[test]
+    fn empty_table() {
+        let t = CornerTable::build(&[], 0);
+        assert_eq!(t.corner_count(), 0);
+        assert_eq!(t.edge_count(), 0);
+    }
+}

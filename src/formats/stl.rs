@@ -1,0 +1,11 @@
+//! STL reader (ASCII and binary).
+
+use std::path::Path;
+
+use super::{ReadContext, ReadError};
+use crate::mesh::Mesh;
+
+pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
+    let _ = (path, cx);
+    Err(ReadError::new("not supported yet"))
+}

@@ -1,0 +1,13 @@
+//! meshvet vets triangle meshes in bulk: it reads OBJ, glTF/GLB, STL, PLY and OFF files, builds a
+//! Corner Table for each mesh and reports its topology (holes, non-manifold edges and vertices,
+//! orientation, shells, cavities, genus). The library never prints; the binary owns the terminal.
+
+pub mod corner_table;
+pub mod formats;
+pub mod mesh;
+pub mod topology;
+pub mod weld;
+
+pub use corner_table::CornerTable;
+pub use mesh::Mesh;
+pub use topology::{analyse, Analysis, Component, Options, Role, Shell};

@@ -1,0 +1,165 @@
+//! Pure functions from a mesh to the numbers SPEC sections 3-8 define. One pass, [`analyse`], computes
+//! an [`Analysis`] with every count the report needs plus per-component and per-shell tables; the
+//! rules decide later what those facts mean for a user.
+
+mod analyse;
+mod nesting;
+
+pub use analyse::analyse;
+
+/// How the analysis welds vertices (SPEC 3).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Options {
+    /// `0.0`: weld only exactly equal positions (-0.0 equals 0.0). Otherwise positions closer than this
+    /// distance are one vertex.
+    pub weld_tolerance: f64,
+}
+
+/// Every topological fact about one mesh (SPEC 9 columns without the file columns).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Analysis {
+    /// Input vertices as the file stores them.
+    pub vertices: usize,
+    /// Distinct valid positions after welding (unreferenced ones included).
+    pub welded_vertices: usize,
+    /// Input triangles.
+    pub faces: usize,
+    /// Faces with two corners on one welded vertex; left out of the table.
+    pub degenerate_faces: usize,
+    /// Faces with three distinct vertices but area <= 1e-12 x diagonal^2; kept.
+    pub zero_area_faces: usize,
+    /// Extra copies of a face with the same three welded vertices (either winding); kept.
+    pub duplicate_faces: usize,
+    /// Input vertices with a NaN or infinite coordinate.
+    pub invalid_vertices: usize,
+    /// Faces left out because they use an invalid vertex.
+    pub invalid_faces: usize,
+    /// Valid welded vertices that no face refers to.
+    pub unreferenced_vertices: usize,
+    /// Unordered vertex pairs bounding at least one face of the table.
+    pub edges: usize,
+    pub border_edges: usize,
+    pub nonmanifold_edges: usize,
+    pub nonmanifold_vertices: usize,
+    /// Manifold edges whose two faces traverse them in the same direction.
+    pub inconsistent_edges: usize,
+    /// `V - E + F` over the table (V: vertices used by the table's faces).
+    pub euler: i64,
+    /// Total area of the table's faces.
+    pub area: f64,
+    /// Bounding box of the valid vertices, `None` when there are none.
+    pub bbox: Option<[[f64; 3]; 2]>,
+    /// Edge-connected components, in order of their lowest face.
+    pub components: Vec<Component>,
+    /// Closed manifold components, in component order.
+    pub shells: Vec<Shell>,
+}
+
+/// A maximal set of faces connected through shared edges of any valence (SPEC 7).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Component {
+    pub faces: usize,
+    pub vertices: usize,
+    pub edges: usize,
+    pub border_edges: usize,
+    pub nonmanifold_edges: usize,
+    /// Boundary loops.
+    pub holes: usize,
+    /// Every edge has valence 2.
+    pub closed: bool,
+    /// Edges of valence <= 2 and one fan of the component's faces around each of its vertices.
+    pub manifold: bool,
+    /// Windings exist that make every manifold edge consistent.
+    pub orientable: bool,
+    /// Every manifold edge is consistent as stored.
+    pub oriented: bool,
+    /// `V - E + F` of the component.
+    pub euler: i64,
+    /// `(2 - chi - holes) / 2`; `None` unless manifold and orientable.
+    pub genus: Option<i64>,
+}
+
+/// Whether a shell bounds material from outside or a void inside material (SPEC 8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Role {
+    #[default]
+    Solid,
+    Cavity,
+}
+
+/// A closed, manifold component (SPEC 7) with its place in the nesting (SPEC 8).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Shell {
+    /// Index into [`Analysis::components`].
+    pub component: usize,
+    pub faces: usize,
+    pub vertices: usize,
+    pub genus: Option<i64>,
+    pub orientable: bool,
+    pub oriented: bool,
+    /// Signed volume with the faces taken in a consistent winding (the stored one when the shell is
+    /// oriented, else the winding of the majority of its faces); `None` when not orientable.
+    pub volume: Option<f64>,
+    /// How many other shells contain this one.
+    pub depth: usize,
+    /// Solid for even depth, cavity for odd.
+    pub role: Role,
+    /// Oriented, with a volume sign wrong for its role (solids need positive, cavities negative).
+    pub inside_out: bool,
+    /// Bounding box of the shell's vertices.
+    pub bbox: [[f64; 3]; 2],
+}
+
+impl Analysis {
+    /// Boundary loops over all components.
+    pub fn holes(&self) -> usize {
+        self.components.iter().map(|c| c.holes).sum()
+    }
+
+    /// Every component orientable (true for an empty mesh).
+    pub fn orientable(&self) -> bool {
+        self.components.iter().all(|c| c.orientable)
+    }
+
+    /// Every manifold edge consistent as stored.
+    pub fn oriented(&self) -> bool {
+        self.inconsistent_edges == 0
+    }
+
+    /// Sum of the components' genus, `None` when any component's genus is undefined or there are none.
+    pub fn genus(&self) -> Option<i64> {
+        if self.components.is_empty() {
+            return None;
+        }
+        self.components.iter().map(|c| c.genus).sum()
+    }
+
+    pub fn solids(&self) -> usize {
+        self.shells.iter().filter(|s| s.role == Role::Solid).count()
+    }
+
+    pub fn cavities(&self) -> usize {
+        self.shells.iter().filter(|s| s.role == Role::Cavity).count()
+    }
+
+    pub fn inside_out_shells(&self) -> usize {
+        self.shells.iter().filter(|s| s.inside_out).count()
+    }
+
+    /// Sum of the shells' volumes, each with the sign its role demands (solids +, cavities -); `None`
+    /// when no shell has a volume.
+    pub fn volume(&self) -> Option<f64> {
+        let mut any = false;
+        let mut sum = 0.0;
+        for s in &self.shells {
+            if let Some(v) = s.volume {
+                any = true;
+                sum += match s.role {
+                    Role::Solid => v.abs(),
+                    Role::Cavity => -v.abs(),
+                };
+            }
+        }
+        any.then_some(sum)
+    }
+}

@@ -1,0 +1,1 @@
+//! Shell nesting (SPEC 8).
