@@ -2,10 +2,15 @@
 //! Corner Table for each mesh and reports its topology (holes, non-manifold edges and vertices,
 //! orientation, shells, cavities, genus). The library never prints; the binary owns the terminal.
 
+pub mod config;
 pub mod corner_table;
 pub mod formats;
 pub mod mesh;
+pub mod report;
+pub mod rules;
+pub mod scan;
 pub mod topology;
+pub mod walk;
 pub mod weld;
 
 pub use corner_table::CornerTable;
