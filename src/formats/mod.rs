@@ -11,6 +11,7 @@ mod gltf;
 mod obj;
 mod off;
 mod ply;
+mod polygon;
 mod stl;
 
 /// The file formats meshvet reads.

@@ -1,11 +1,387 @@
-//! STL reader (ASCII and binary).
+//! STL reader (ASCII and binary), our own rather than stl_io (CRATES.md 5.7: fragile detection, only
+//! the first `solid`, -0.0 welded apart).
+//!
+//! Detection: a file is binary exactly when its size is `84 + 50 n` for the triangle count `n` in its
+//! header, even when it starts with `solid` (many exporters write that into the binary header).
+//! Otherwise a file starting with `solid` is parsed as ASCII, and anything else is a truncated (or
+//! padded) binary file, reported with the declared and actual counts. Every facet contributes its
+//! own positions, exactly as stored (the analysis welds); ASCII loops with more than three vertices
+//! are split by [`super::polygon`].
 
 use std::path::Path;
 
+use super::polygon::{self, SplitTally};
 use super::{ReadContext, ReadError};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let _ = (path, cx);
-    Err(ReadError::new("not supported yet"))
+    let bytes = std::fs::read(path)?;
+    parse(&bytes, cx).map(|m| vec![m])
+}
+
+/// Size of the binary header plus the triangle count.
+const HEADER: usize = 84;
+/// Size of one binary facet: normal, three vertices (12 f32) and the attribute word.
+const FACET: usize = 50;
+
+fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+    if bytes.is_empty() {
+        let mut mesh = Mesh::default();
+        mesh.notes.push("the file is empty".into());
+        return Ok(mesh);
+    }
+    let declared = (bytes.len() >= HEADER)
+        .then(|| u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64);
+    if let Some(n) = declared {
+        if HEADER as u64 + FACET as u64 * n == bytes.len() as u64 {
+            return parse_binary(bytes, n, cx);
+        }
+    }
+    if starts_with_solid(bytes) {
+        let ascii = parse_ascii(bytes, cx);
+        match (&ascii, declared) {
+            (Ok(_), _) | (Err(_), None) => return ascii,
+            // Looks like neither: an ASCII error on a file full of binary bytes would mislead.
+            (Err(_), Some(_)) if !looks_binary(bytes) => return ascii,
+            _ => {}
+        }
+    }
+    if looks_like_other_format(bytes) {
+        return Err(ReadError::new(
+            "not an STL file: the content is another format (an image, archive or other mesh \
+             format) with an .stl name - rename it to its real extension or re-export it as STL",
+        ));
+    }
+    match declared {
+        None => Err(ReadError::new(format!(
+            "not an STL file: {} bytes, too short for a binary STL (at least 84 bytes) and it does \
+             not start with `solid` - re-export the file",
+            bytes.len()
+        ))),
+        Some(n) => {
+            let held = (bytes.len() - HEADER) / FACET;
+            let what = if (held as u64) < n {
+                "truncated"
+            } else {
+                "damaged"
+            };
+            Err(ReadError::new(format!(
+                "{what} binary STL: header declares {n} triangles ({} bytes), file holds {held} \
+                 ({} bytes) - re-export the file",
+                HEADER as u64 + FACET as u64 * n,
+                bytes.len()
+            )))
+        }
+    }
+}
+
+fn starts_with_solid(bytes: &[u8]) -> bool {
+    let start = bytes.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(bytes.len());
+    bytes[start..]
+        .get(..5)
+        .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"))
+}
+
+/// Control bytes other than whitespace in the first kilobyte: this is no text file.
+fn looks_binary(bytes: &[u8]) -> bool {
+    bytes
+        .iter()
+        .take(1024)
+        .any(|&b| b < 0x20 && !b.is_ascii_whitespace() || b == 0x7f)
+}
+
+/// Magic numbers of formats that end up renamed to `.stl` (PNG, JPEG, ZIP, GLB, PLY, gzip).
+fn looks_like_other_format(bytes: &[u8]) -> bool {
+    [
+        &b"\x89PNG"[..],
+        b"\xff\xd8\xff",
+        b"PK\x03\x04",
+        b"glTF",
+        b"ply\n",
+        b"ply\r",
+        b"\x1f\x8b",
+    ]
+    .iter()
+    .any(|m| bytes.starts_with(m))
+}
+
+fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {
+    if triangles > cx.limits.max_triangles {
+        return Err(ReadError::new(format!(
+            "the file has {triangles} triangles, over the limit of {}: raise limits.max_triangles \
+             in the config to scan it",
+            cx.limits.max_triangles
+        )));
+    }
+    Ok(())
+}
+
+fn parse_binary(bytes: &[u8], n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
+    check_limit(n, cx)?;
+    // The size matched 84 + 50 n, so n facets are really there: the allocation is backed by data.
+    let n = n as usize;
+    let mut positions = Vec::with_capacity(3 * n);
+    let mut triangles = Vec::with_capacity(n);
+    let f = |b: &[u8], k: usize| {
+        f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]]) as f64
+    };
+    for (t, facet) in bytes[HEADER..].chunks_exact(FACET).enumerate() {
+        // Skip the facet normal (floats 0..3): the analysis derives orientation from the winding.
+        for v in 0..3 {
+            let k = 3 + 3 * v;
+            positions.push([f(facet, k), f(facet, k + 1), f(facet, k + 2)]);
+        }
+        let i = 3 * t as u32;
+        triangles.push([i, i + 1, i + 2]);
+    }
+    let mut mesh = Mesh::new(positions, triangles);
+    if n == 0 {
+        mesh.notes.push("binary STL with 0 triangles".into());
+    }
+    Ok(mesh)
+}
+
+/// A whitespace-separated token and the 1-based line it starts on.
+struct Tokens<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    line: u64,
+}
+
+impl<'a> Tokens<'a> {
+    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        while let Some(&b) = self.bytes.get(self.pos) {
+            if !b.is_ascii_whitespace() {
+                break;
+            }
+            if b == b'\n' {
+                self.line += 1;
+            }
+            self.pos += 1;
+        }
+        if self.pos >= self.bytes.len() {
+            return None;
+        }
+        let start = self.pos;
+        while self
+            .bytes
+            .get(self.pos)
+            .is_some_and(|b| !b.is_ascii_whitespace())
+        {
+            self.pos += 1;
+        }
+        Some((&self.bytes[start..self.pos], self.line))
+    }
+
+    /// Skips the rest of the current line (the name after `solid` / `endsolid`).
+    fn skip_line(&mut self) {
+        while let Some(&b) = self.bytes.get(self.pos) {
+            if b == b'\n' {
+                return;
+            }
+            self.pos += 1;
+        }
+    }
+}
+
+fn word(token: &[u8]) -> String {
+    String::from_utf8_lossy(&token[..token.len().min(40)]).into_owned()
+}
+
+fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+    let mut tokens = Tokens {
+        bytes,
+        pos: 0,
+        line: 1,
+    };
+    let mut mesh = Mesh::default();
+    let mut tally = SplitTally::default();
+    let mut solids = 0u64;
+    let mut in_loop = false;
+    let mut loop_start = 0usize;
+    let mut loop_line = 0u64;
+    let mut poly: Vec<u32> = Vec::new();
+    let err = |line: u64, what: String| {
+        Err(ReadError::new(format!(
+            "ASCII STL line {line}: {what} - fix or re-export the file"
+        )))
+    };
+    while let Some((tok, line)) = tokens.next() {
+        match keyword(tok) {
+            b"solid" => {
+                solids += 1;
+                tokens.skip_line();
+            }
+            b"endsolid" => tokens.skip_line(),
+            b"facet" | b"normal" | b"endfacet" => {}
+            b"outer" => {}
+            b"loop" => {
+                if in_loop {
+                    return err(line, "`outer loop` inside another loop (missing `endloop`)".into());
+                }
+                in_loop = true;
+                loop_start = mesh.positions.len();
+                loop_line = line;
+            }
+            b"vertex" => {
+                if !in_loop {
+                    return err(line, "`vertex` outside `outer loop ... endloop`".into());
+                }
+                let mut p = [0.0f64; 3];
+                for c in &mut p {
+                    let Some((num, l)) = tokens.next() else {
+                        return err(line, "the file ends inside a vertex".into());
+                    };
+                    *c = parse_f64(num).ok_or_else(|| {
+                        ReadError::new(format!(
+                            "ASCII STL line {l}: `{}` is not a number - fix or re-export the file",
+                            word(num)
+                        ))
+                    })?;
+                }
+                mesh.positions.push(p);
+            }
+            b"endloop" => {
+                if !in_loop {
+                    return err(line, "`endloop` without `outer loop`".into());
+                }
+                in_loop = false;
+                let end = mesh.positions.len();
+                if end > u32::MAX as usize {
+                    return err(line, "more than 4 billion vertices".into());
+                }
+                poly.clear();
+                poly.extend(loop_start as u32..end as u32);
+                let split = polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
+                tally.add(split, loop_line);
+                check_limit(mesh.triangles.len() as u64, cx)?;
+            }
+            _ => {
+                // Facet normals and vertex numbers were consumed above; anything else is not STL.
+                if parse_f64(tok).is_some() {
+                    continue; // the three numbers after `facet normal`
+                }
+                return err(line, format!("unexpected `{}`", word(tok)));
+            }
+        }
+    }
+    if in_loop {
+        return err(tokens.line, "the file ends inside `outer loop` (truncated)".into());
+    }
+    if solids > 1 {
+        mesh.notes.push(format!(
+            "{solids} `solid` blocks read as one mesh"
+        ));
+    }
+    tally.notes("line", &mut mesh.notes);
+    Ok(mesh)
+}
+
+/// The token lower-cased when it is an STL keyword (no allocation); numbers and anything else are
+/// returned unchanged.
+fn keyword(tok: &[u8]) -> &[u8] {
+    const WORDS: [&[u8]; 9] = [
+        b"solid", b"endsolid", b"facet", b"normal", b"endfacet", b"outer", b"loop", b"vertex",
+        b"endloop",
+    ];
+    WORDS
+        .iter()
+        .find(|w| w.eq_ignore_ascii_case(tok))
+        .copied()
+        .unwrap_or(tok)
+}
+
+fn parse_f64(token: &[u8]) -> Option<f64> {
+    std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::Limits;
+
+    fn cx() -> ReadContext {
+        ReadContext {
+            root: ".".into(),
+            limits: Limits::default(),
+        }
+    }
+
+    fn binary(tris: &[[[f32; 3]; 3]], header: &[u8]) -> Vec<u8> {
+        let mut b = vec![0u8; 80];
+        b[..header.len()].copy_from_slice(header);
+        b.extend((tris.len() as u32).to_le_bytes());
+        for t in tris {
+            b.extend([0u8; 12]);
+            for v in t {
+                for c in v {
+                    b.extend(c.to_le_bytes());
+                }
+            }
+            b.extend([0u8; 2]);
+        }
+        b
+    }
+
+    const TRI: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+    #[test]
+    fn binary_even_when_it_starts_with_solid() {
+        let b = binary(&[TRI, TRI], b"solid but binary");
+        let m = parse(&b, &cx()).unwrap();
+        assert_eq!(m.positions.len(), 6);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(m.positions[4], [1.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn truncated_binary_names_both_counts() {
+        let mut b = binary(&[TRI, TRI, TRI], b"");
+        b.truncate(84 + 50 * 2 + 7);
+        let e = parse(&b, &cx()).unwrap_err().0;
+        assert!(e.contains("declares 3 triangles") && e.contains("holds 2"), "{e}");
+    }
+
+    #[test]
+    fn ascii_multi_solid_with_odd_case_and_a_quad() {
+        let s = b"solid a\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 1 0 0\n   \
+                  vertex 0 1 0\n  endloop\n endfacet\nendsolid a\nSOLID b\nFACET NORMAL 0 0 1 OUTER \
+                  LOOP VERTEX 0 0 1 VERTEX 1 0 1 VERTEX 1 1 1 VERTEX 0 1 1 ENDLOOP ENDFACET\nendsolid\n";
+        let m = parse(s, &cx()).unwrap();
+        assert_eq!(m.positions.len(), 7);
+        assert_eq!(m.triangles.len(), 3);
+        assert!(m.notes.iter().any(|n| n.contains("2 `solid` blocks")));
+    }
+
+    #[test]
+    fn ascii_nan_is_kept_and_errors_have_lines() {
+        let s = b"solid x\nfacet normal 0 0 0\nouter loop\nvertex nan 0 0\nvertex 1 0 0\nvertex 0 1 0\n\
+                  endloop\nendfacet\nendsolid\n";
+        let m = parse(s, &cx()).unwrap();
+        assert!(m.positions[0][0].is_nan());
+        let bad = b"solid x\nfacet normal 0 0 0\nouter loop\nvertex 1 zz 0\n";
+        let e = parse(bad, &cx()).unwrap_err().0;
+        assert!(e.contains("line 4") && e.contains("zz"), "{e}");
+        let e = parse(b"solid x\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\n", &cx())
+            .unwrap_err()
+            .0;
+        assert!(e.contains("truncated"), "{e}");
+    }
+
+    #[test]
+    fn garbage_and_empty() {
+        assert!(parse(b"", &cx()).unwrap().triangles.is_empty());
+        assert!(parse(b"hello", &cx()).unwrap_err().0.contains("not an STL"));
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.resize(500, 7);
+        assert!(parse(&png, &cx()).unwrap_err().0.contains("another format"));
+    }
+
+    #[test]
+    fn limit_is_respected() {
+        let mut c = cx();
+        c.limits.max_triangles = 1;
+        let e = parse(&binary(&[TRI, TRI], b""), &c).unwrap_err().0;
+        assert!(e.contains("max_triangles"), "{e}");
+    }
 }
