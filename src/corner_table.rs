@@ -71,7 +71,11 @@ impl CornerTable {
         // Each slot holds (higher vertex << 32 | corner), so sorting a bucket sorts by edge, then corner.
         let mut keys = vec![0u64; corners];
         let mut fill = start.clone();
-        for (c, t) in triangles.iter().enumerate().flat_map(|(i, t)| (0..3).map(move |k| (3 * i + k, t))) {
+        for (c, t) in triangles
+            .iter()
+            .enumerate()
+            .flat_map(|(i, t)| (0..3).map(move |k| (3 * i + k, t)))
+        {
             let k = c % 3;
             let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
             let slot = &mut fill[a.min(b) as usize];

@@ -46,7 +46,11 @@ fn weld_exact(positions: &[[f64; 3]]) -> Welded {
             continue;
         }
         // Adding 0.0 turns -0.0 into 0.0, so both have one bit pattern.
-        let key = [(p[0] + 0.0).to_bits(), (p[1] + 0.0).to_bits(), (p[2] + 0.0).to_bits()];
+        let key = [
+            (p[0] + 0.0).to_bits(),
+            (p[1] + 0.0).to_bits(),
+            (p[2] + 0.0).to_bits(),
+        ];
         let next = out.positions.len() as u32;
         let id = *ids.entry(key).or_insert(next);
         if id == next {
@@ -76,7 +80,11 @@ fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
         for dx in -1..=1i64 {
             for dy in -1..=1i64 {
                 for dz in -1..=1i64 {
-                    let key = [k[0].saturating_add(dx), k[1].saturating_add(dy), k[2].saturating_add(dz)];
+                    let key = [
+                        k[0].saturating_add(dx),
+                        k[1].saturating_add(dy),
+                        k[2].saturating_add(dz),
+                    ];
                     for &id in grid.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
                         let q = &out.positions[id as usize];
                         let d2 = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>();
@@ -103,7 +111,15 @@ mod tests {
 
     #[test]
     fn exact_weld_merges_equal_positions_and_signed_zero() {
-        let w = weld(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [-0.0, 0.0, -0.0], [1.0, 0.0, 0.0]], 0.0);
+        let w = weld(
+            &[
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [-0.0, 0.0, -0.0],
+                [1.0, 0.0, 0.0],
+            ],
+            0.0,
+        );
         assert_eq!(w.map, vec![0, 1, 0, 1]);
         assert_eq!(w.positions.len(), 2);
         assert_eq!(w.invalid, 0);
@@ -117,7 +133,14 @@ mod tests {
 
     #[test]
     fn invalid_positions_are_marked_and_counted() {
-        let w = weld(&[[f64::NAN, 0.0, 0.0], [0.0, f64::INFINITY, 0.0], [0.0, 0.0, 0.0]], 0.0);
+        let w = weld(
+            &[
+                [f64::NAN, 0.0, 0.0],
+                [0.0, f64::INFINITY, 0.0],
+                [0.0, 0.0, 0.0],
+            ],
+            0.0,
+        );
         assert_eq!(w.map, vec![INVALID, INVALID, 0]);
         assert_eq!(w.invalid, 2);
         assert_eq!(w.positions.len(), 1);
@@ -126,7 +149,12 @@ mod tests {
     /// Points 0.4 apart across a cell boundary weld with tolerance 0.5; a point 0.6 away does not.
     #[test]
     fn tolerance_weld_crosses_cell_boundaries() {
-        let pts = [[0.3, 0.0, 0.0], [0.7, 0.0, 0.0], [1.3, 0.0, 0.0], [0.3, 0.0, 0.0]];
+        let pts = [
+            [0.3, 0.0, 0.0],
+            [0.7, 0.0, 0.0],
+            [1.3, 0.0, 0.0],
+            [0.3, 0.0, 0.0],
+        ];
         let w = weld(&pts, 0.5);
         assert_eq!(w.map, vec![0, 0, 1, 0]);
     }

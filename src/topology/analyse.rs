@@ -1,10 +1,678 @@
-//! The one pass from a mesh to its [`Analysis`].
+//! The one pass from a mesh to its [`Analysis`]:
+//!
+//! 1. weld positions; classify faces (invalid, degenerate, zero-area) and build the Corner Table;
+//! 2. walk **patches** (faces linked through manifold edges) with an orientation parity per face: a
+//!    conflict makes the patch non-orientable; patches joined at non-manifold edges form the
+//!    **components**;
+//! 3. walk the **fan** of every corner (faces around its vertex linked through manifold edges): a vertex
+//!    with more than one fan is non-manifold; fans also pair the border edges at each vertex, which
+//!    traces the **holes** on the undirected border;
+//! 4. per component: V, E, F, chi, holes, genus; per shell (closed, manifold component): volume, then
+//!    nesting depth, role and orientation.
+//!
+//! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
+//! bounding boxes).
 
-use super::{Analysis, Options};
+use super::nesting::{depths, ShellGeometry};
+use super::{Analysis, Component, Options, Role, Shell};
+use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::mesh::Mesh;
+use crate::weld::{weld, INVALID};
+
+const UNSET: u32 = u32::MAX;
 
 /// Computes every topological fact of SPEC sections 3-8 for one mesh.
 pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
-    let _ = (mesh, options);
-    Analysis::default()
+    let welded = weld(&mesh.positions, options.weld_tolerance);
+    let points = &welded.positions;
+    let mut a = Analysis {
+        vertices: mesh.positions.len(),
+        welded_vertices: points.len(),
+        faces: mesh.triangles.len(),
+        invalid_vertices: welded.invalid,
+        bbox: bounding_box(points.iter()),
+        ..Analysis::default()
+    };
+
+    // 1. Faces: leave out invalid and degenerate ones, count zero-area ones, build the table.
+    let diagonal2 = a.bbox.map_or(0.0, |[lo, hi]| dist2(&lo, &hi));
+    // area <= 1e-12 d^2  <=>  |cross|^2 <= (2e-12 d^2)^2
+    let zero_cross2 = (2e-12 * diagonal2).powi(2);
+    let mut referenced = vec![false; points.len()];
+    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
+    for t in &mesh.triangles {
+        let w = t.map(|i| welded.map.get(i as usize).copied().unwrap_or(INVALID));
+        for &x in w.iter().filter(|&&x| x != INVALID) {
+            referenced[x as usize] = true;
+        }
+        if w.contains(&INVALID) {
+            a.invalid_faces += 1;
+        } else if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+            a.degenerate_faces += 1;
+        } else {
+            let cross2 = norm2(&cross_at(points, w));
+            if cross2 <= zero_cross2 {
+                a.zero_area_faces += 1;
+            }
+            a.area += 0.5 * cross2.sqrt();
+            triangles.push(w);
+        }
+    }
+    a.unreferenced_vertices = referenced.iter().filter(|&&r| !r).count();
+    drop(referenced);
+
+    let table = CornerTable::build(&triangles, points.len());
+    a.edges = table.edge_count();
+    a.border_edges = table.border_edge_count();
+    a.nonmanifold_edges = table.nonmanifold_edges().len();
+    a.duplicate_faces = count_duplicates(&table);
+
+    // 2. Patches with orientation parity, then components.
+    let patches = walk_patches(&table);
+    let component_of_patch = join_patches(&table, &patches);
+    let component_count = component_of_patch
+        .iter()
+        .map(|&c| c as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let component_of = |t: u32| component_of_patch[patches.of_face[t as usize] as usize] as usize;
+
+    let mut components = vec![Component::default(); component_count];
+    for c in &mut components {
+        c.orientable = true;
+    }
+    for (p, &orientable) in patches.orientable.iter().enumerate() {
+        components[component_of_patch[p] as usize].orientable &= orientable;
+    }
+    for t in 0..table.triangle_count() as u32 {
+        components[component_of(t)].faces += 1;
+    }
+    let mut inconsistent = vec![0usize; component_count];
+    for c in 0..table.corner_count() as u32 {
+        let comp = &mut components[component_of(CornerTable::t(c))];
+        let o = table.o(c);
+        if o == c {
+            comp.edges += 1;
+            comp.border_edges += 1;
+        } else if o != NON_MANIFOLD && c < o {
+            comp.edges += 1;
+            if !table.is_consistent(c) {
+                inconsistent[component_of(CornerTable::t(c))] += 1;
+            }
+        }
+    }
+    for corners in table.nonmanifold_edges() {
+        let comp = &mut components[component_of(CornerTable::t(corners[0]))];
+        comp.edges += 1;
+        comp.nonmanifold_edges += 1;
+    }
+    a.inconsistent_edges = inconsistent.iter().sum();
+
+    // 3. Fans: non-manifold vertices, vertices per component, holes.
+    let fans = walk_fans(&table, &component_of);
+    a.nonmanifold_vertices = fans.nonmanifold_vertices;
+    let used_vertices = fans.used_vertices;
+    for (comp, &n) in fans.vertices_per_component.iter().enumerate() {
+        components[comp].vertices = n;
+    }
+    for &corner in &fans.hole_corners {
+        components[component_of(CornerTable::t(corner))].holes += 1;
+    }
+
+    // 4. Per component numbers.
+    let mut split = vec![false; component_count];
+    for &comp in &fans.split_components {
+        split[comp] = true;
+    }
+    for (i, c) in components.iter_mut().enumerate() {
+        c.closed = c.border_edges == 0 && c.nonmanifold_edges == 0;
+        c.manifold = c.nonmanifold_edges == 0 && !split[i];
+        c.oriented = inconsistent[i] == 0;
+        c.euler = c.vertices as i64 - c.edges as i64 + c.faces as i64;
+        let twice_genus = 2 - c.euler - c.holes as i64;
+        c.genus = (c.manifold && c.orientable && twice_genus >= 0 && twice_genus % 2 == 0)
+            .then_some(twice_genus / 2);
+    }
+    a.euler = used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
+
+    a.shells = shells(&table, points, &patches, &component_of, &components);
+    a.components = components;
+    a
+}
+
+/// Faces linked through manifold edges, each face with a parity: flipping the faces with parity
+/// `true` makes every manifold edge of an orientable patch consistent.
+struct Patches {
+    of_face: Vec<u32>,
+    flip: Vec<bool>,
+    orientable: Vec<bool>,
+}
+
+fn walk_patches(table: &CornerTable) -> Patches {
+    let nt = table.triangle_count();
+    let mut of_face = vec![UNSET; nt];
+    let mut flip = vec![false; nt];
+    let mut orientable = Vec::new();
+    let mut stack = Vec::new();
+    for seed in 0..nt {
+        if of_face[seed] != UNSET {
+            continue;
+        }
+        let id = orientable.len() as u32;
+        let mut ok = true;
+        of_face[seed] = id;
+        stack.push(seed as u32);
+        while let Some(t) = stack.pop() {
+            for c in 3 * t..3 * t + 3 {
+                let Some(b) = table.opposite(c) else { continue };
+                let u = CornerTable::t(b) as usize;
+                let want = flip[t as usize] ^ !table.is_consistent(c);
+                if of_face[u] == UNSET {
+                    of_face[u] = id;
+                    flip[u] = want;
+                    stack.push(u as u32);
+                } else if flip[u] != want {
+                    ok = false;
+                }
+            }
+        }
+        orientable.push(ok);
+    }
+    Patches {
+        of_face,
+        flip,
+        orientable,
+    }
+}
+
+/// Component of each patch: patches sharing a non-manifold edge are one component. Components are
+/// numbered in order of their lowest face (patches already are).
+fn join_patches(table: &CornerTable, patches: &Patches) -> Vec<u32> {
+    let mut parent: Vec<u32> = (0..patches.orientable.len() as u32).collect();
+    for corners in table.nonmanifold_edges() {
+        let first = patches.of_face[CornerTable::t(corners[0]) as usize];
+        for &c in &corners[1..] {
+            union(
+                &mut parent,
+                first,
+                patches.of_face[CornerTable::t(c) as usize],
+            );
+        }
+    }
+    let mut number = vec![UNSET; parent.len()];
+    let mut next = 0;
+    (0..parent.len() as u32)
+        .map(|p| {
+            let root = find(&mut parent, p) as usize;
+            if number[root] == UNSET {
+                number[root] = next;
+                next += 1;
+            }
+            number[root]
+        })
+        .collect()
+}
+
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        let up = parent[parent[x as usize] as usize];
+        parent[x as usize] = up;
+        x = up;
+    }
+    x
+}
+
+/// Joins two sets, keeping the smaller root (so roots stay the lowest member).
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra.max(rb) as usize] = ra.min(rb);
+    }
+}
+
+/// Extra copies of faces with the same three vertices. Copies of `{x < y < z}` all bound the edge
+/// `y-z` with `x` as the opposite vertex, so each set is counted once, on that edge.
+fn count_duplicates(table: &CornerTable) -> usize {
+    let mut count = 0;
+    let edge_min = |c: u32| table.v(CornerTable::n(c)).min(table.v(CornerTable::p(c)));
+    for c in 0..table.corner_count() as u32 {
+        if let Some(b) = table.opposite(c) {
+            if c < b && table.v(c) == table.v(b) && table.v(c) < edge_min(c) {
+                count += 1;
+            }
+        }
+    }
+    let mut apex = Vec::new();
+    for corners in table.nonmanifold_edges() {
+        let low = edge_min(corners[0]);
+        apex.clear();
+        apex.extend(corners.iter().map(|&c| table.v(c)).filter(|&x| x < low));
+        apex.sort_unstable();
+        count += apex.windows(2).filter(|w| w[0] == w[1]).count();
+    }
+    count
+}
+
+struct Fans {
+    nonmanifold_vertices: usize,
+    used_vertices: usize,
+    vertices_per_component: Vec<usize>,
+    /// Components that have two or more fans around one vertex (not manifold).
+    split_components: Vec<usize>,
+    /// One border corner per hole (boundary loop).
+    hole_corners: Vec<u32>,
+}
+
+/// How a fan walk ended on one side.
+#[derive(Clone, Copy, PartialEq)]
+enum FanEnd {
+    /// At a border edge, named by the corner facing it.
+    Border(u32),
+    NonManifold,
+    /// Back at the start: the fan is a full disk.
+    Closed,
+}
+
+/// Walks the fan of every corner: the faces around `v(c)` linked through manifold edges at `v(c)`.
+/// Works on any windings: each step finds the corner at the vertex in the next face by its vertex.
+fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans {
+    let nc = table.corner_count();
+    let nv = table.vertex_count();
+    let mut visited = vec![false; nc];
+    let mut fan_count = vec![0u32; nv];
+    let mut first_component = vec![UNSET; nv];
+    let mut vertices_per_component = Vec::new();
+    // (vertex, component) of every fan at a vertex with two or more fans.
+    let mut multi: Vec<(u32, u32)> = Vec::new();
+    // Border edges whose ends are joined at a vertex, as corner pairs; and lone ends per vertex.
+    let mut joins: Vec<(u32, u32)> = Vec::new();
+    let mut lone: Vec<(u32, u32)> = Vec::new();
+
+    let walk = |start: u32, exit: u32, visited: &mut [bool]| -> FanEnd {
+        let v = table.v(start);
+        let mut exit = exit;
+        loop {
+            let o = table.o(exit);
+            if o == exit {
+                return FanEnd::Border(exit);
+            }
+            if o == NON_MANIFOLD {
+                return FanEnd::NonManifold;
+            }
+            // The shared edge is opposite `o`; one of its ends is the corner at `v`.
+            let (d, e) = if table.v(CornerTable::n(o)) == v {
+                (CornerTable::n(o), CornerTable::p(o))
+            } else {
+                (CornerTable::p(o), CornerTable::n(o))
+            };
+            if visited[d as usize] {
+                return FanEnd::Closed;
+            }
+            visited[d as usize] = true;
+            // Leave through the other edge at `v`: the one opposite `e`.
+            exit = e;
+        }
+    };
+
+    for c in 0..nc as u32 {
+        if visited[c as usize] {
+            continue;
+        }
+        visited[c as usize] = true;
+        let v = table.v(c) as usize;
+        let comp = component_of(CornerTable::t(c));
+        if vertices_per_component.len() <= comp {
+            vertices_per_component.resize(comp + 1, 0);
+        }
+        vertices_per_component[comp] += 1;
+        fan_count[v] += 1;
+        match fan_count[v] {
+            1 => first_component[v] = comp as u32,
+            2 => {
+                multi.push((v as u32, first_component[v]));
+                multi.push((v as u32, comp as u32));
+            }
+            _ => multi.push((v as u32, comp as u32)),
+        }
+        let ahead = walk(c, CornerTable::p(c), &mut visited);
+        if ahead == FanEnd::Closed {
+            continue;
+        }
+        let behind = walk(c, CornerTable::n(c), &mut visited);
+        match (ahead, behind) {
+            (FanEnd::Border(x), FanEnd::Border(y)) => joins.push((x, y)),
+            (FanEnd::Border(x), _) | (_, FanEnd::Border(x)) => lone.push((v as u32, x)),
+            _ => {}
+        }
+    }
+
+    let used_vertices = fan_count.iter().filter(|&&n| n > 0).count();
+    let nonmanifold_vertices = fan_count.iter().filter(|&&n| n > 1).count();
+
+    // A component with two fans at one vertex has one vertex fewer than fans, and is not manifold.
+    multi.sort_unstable();
+    let mut split_components = Vec::new();
+    for w in multi.windows(2) {
+        if w[0] == w[1] {
+            vertices_per_component[w[0].1 as usize] -= 1;
+            split_components.push(w[0].1 as usize);
+        }
+    }
+    split_components.dedup();
+
+    // Holes: border edges joined at their ends by fans; lone ends at one vertex joined together.
+    let border: Vec<u32> = (0..nc as u32).filter(|&c| table.is_border(c)).collect();
+    let index = |c: u32| border.binary_search(&c).expect("border corner") as u32;
+    let mut parent: Vec<u32> = (0..border.len() as u32).collect();
+    for &(x, y) in &joins {
+        union(&mut parent, index(x), index(y));
+    }
+    lone.sort_unstable();
+    for w in lone.windows(2) {
+        if w[0].0 == w[1].0 {
+            union(&mut parent, index(w[0].1), index(w[1].1));
+        }
+    }
+    let hole_corners = (0..border.len() as u32)
+        .filter(|&i| find(&mut parent, i) == i)
+        .map(|i| border[i as usize])
+        .collect();
+
+    Fans {
+        nonmanifold_vertices,
+        used_vertices,
+        vertices_per_component,
+        split_components,
+        hole_corners,
+    }
+}
+
+/// The shells (closed, manifold components) with volume, nesting depth, role and orientation.
+fn shells(
+    table: &CornerTable,
+    points: &[[f64; 3]],
+    patches: &Patches,
+    component_of: &impl Fn(u32) -> usize,
+    components: &[Component],
+) -> Vec<Shell> {
+    let mut shell_of = vec![UNSET; components.len()];
+    let mut shells: Vec<Shell> = Vec::new();
+    for (i, c) in components.iter().enumerate() {
+        if c.closed && c.manifold {
+            shell_of[i] = shells.len() as u32;
+            shells.push(Shell {
+                component: i,
+                faces: c.faces,
+                vertices: c.vertices,
+                genus: c.genus,
+                orientable: c.orientable,
+                oriented: c.oriented,
+                bbox: [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]],
+                ..Shell::default()
+            });
+        }
+    }
+    if shells.is_empty() {
+        return shells;
+    }
+
+    // Faces of each shell (counting sort by shell), bounding boxes, and majority parity.
+    let nt = table.triangle_count() as u32;
+    let mut start = vec![0u32; shells.len() + 1];
+    let mut flipped = vec![0usize; shells.len()];
+    for t in 0..nt {
+        let s = shell_of[component_of(t)];
+        if s != UNSET {
+            start[s as usize + 1] += 1;
+            flipped[s as usize] += usize::from(patches.flip[t as usize]);
+            let bbox = &mut shells[s as usize].bbox;
+            for c in 3 * t..3 * t + 3 {
+                let p = &points[table.v(c) as usize];
+                for k in 0..3 {
+                    bbox[0][k] = bbox[0][k].min(p[k]);
+                    bbox[1][k] = bbox[1][k].max(p[k]);
+                }
+            }
+        }
+    }
+    for i in 0..shells.len() {
+        start[i + 1] += start[i];
+    }
+    let mut faces = vec![0u32; start[shells.len()] as usize];
+    let mut fill = start.clone();
+    for t in 0..nt {
+        let s = shell_of[component_of(t)];
+        if s != UNSET {
+            faces[fill[s as usize] as usize] = t;
+            fill[s as usize] += 1;
+        }
+    }
+
+    // Volume with the faces in a consistent winding: the stored one for the majority of the faces
+    // (on a tie, the winding of the shell's lowest face).
+    for (i, shell) in shells.iter_mut().enumerate() {
+        if !shell.orientable {
+            continue;
+        }
+        let majority_flipped = 2 * flipped[i] > shell.faces;
+        let [lo, hi] = shell.bbox;
+        let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+        let mut six_volume = 0.0;
+        for &t in &faces[start[i] as usize..start[i + 1] as usize] {
+            let [a, b, c] = [0, 1, 2].map(|k| sub(&points[table.v(3 * t + k) as usize], &centre));
+            let det = dot(&a, &cross(&b, &c));
+            six_volume += if patches.flip[t as usize] == majority_flipped {
+                det
+            } else {
+                -det
+            };
+        }
+        shell.volume = Some(six_volume / 6.0);
+    }
+
+    let geometry: Vec<ShellGeometry> = shells
+        .iter()
+        .enumerate()
+        .map(|(i, s)| ShellGeometry {
+            bbox: s.bbox,
+            faces: &faces[start[i] as usize..start[i + 1] as usize],
+        })
+        .collect();
+    let depth = depths(table, points, &geometry);
+    for (shell, depth) in shells.iter_mut().zip(depth) {
+        shell.depth = depth;
+        shell.role = if depth % 2 == 0 {
+            Role::Solid
+        } else {
+            Role::Cavity
+        };
+        shell.inside_out = shell.oriented
+            && match (shell.role, shell.volume) {
+                (Role::Solid, Some(v)) => v < 0.0,
+                (Role::Cavity, Some(v)) => v > 0.0,
+                (_, None) => false,
+            };
+    }
+    shells
+}
+
+fn bounding_box<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> Option<[[f64; 3]; 2]> {
+    let mut bbox: Option<[[f64; 3]; 2]> = None;
+    for p in points {
+        let b = bbox.get_or_insert([*p, *p]);
+        for k in 0..3 {
+            b[0][k] = b[0][k].min(p[k]);
+            b[1][k] = b[1][k].max(p[k]);
+        }
+    }
+    bbox
+}
+
+/// A (not normalised) normal of triangle `a b c`.
+pub(super) fn normal(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> [f64; 3] {
+    cross(&sub(b, a), &sub(c, a))
+}
+
+fn cross_at(points: &[[f64; 3]], t: [u32; 3]) -> [f64; 3] {
+    let [a, b, c] = t.map(|i| points[i as usize]);
+    normal(&a, &b, &c)
+}
+
+fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn norm2(a: &[f64; 3]) -> f64 {
+    dot(a, a)
+}
+
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    norm2(&sub(a, b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Analysis {
+        analyse(
+            &Mesh::new(positions.to_vec(), triangles.to_vec()),
+            &Options::default(),
+        )
+    }
+
+    const CUBE_POINTS: [[f64; 3]; 8] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 1.0, 1.0],
+    ];
+    /// Unit cube, counterclockwise seen from outside.
+    const CUBE: [[u32; 3]; 12] = [
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ];
+
+    /// Cube: V 8, E 18, F 12, chi 2, genus 0, one outward solid of volume 1.
+    #[test]
+    fn unit_cube() {
+        let a = run(&CUBE_POINTS, &CUBE);
+        assert_eq!((a.edges, a.border_edges, a.nonmanifold_edges), (18, 0, 0));
+        assert_eq!(a.euler, 2);
+        assert_eq!(a.genus(), Some(0));
+        assert_eq!(a.shells.len(), 1);
+        assert!(a.oriented() && a.orientable());
+        assert_eq!(a.inside_out_shells(), 0);
+        assert!((a.volume().unwrap() - 1.0).abs() < 1e-12);
+        assert!((a.shells[0].volume.unwrap() - 1.0).abs() < 1e-12);
+        assert!((a.area - 6.0).abs() < 1e-12);
+    }
+
+    /// Bowtie: triangles 0-1-2 and 0-3-4 share vertex 0 only. V 5, E 6, F 2: two components, each a
+    /// disk (chi 1, one hole, genus 0); vertex 0 has two fans.
+    #[test]
+    fn bowtie() {
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [-1.0, -1.0, 0.0],
+        ];
+        let a = run(&p, &[[0, 1, 2], [0, 3, 4]]);
+        assert_eq!(a.nonmanifold_vertices, 1);
+        assert_eq!(a.components.len(), 2);
+        assert!(a
+            .components
+            .iter()
+            .all(|c| c.manifold && c.vertices == 3 && c.holes == 1));
+        assert_eq!(a.holes(), 2);
+        assert_eq!(a.euler, 5 - 6 + 2);
+        assert_eq!(a.genus(), Some(0));
+    }
+
+    /// 2x2x2 cube with a 1x1x1 cube inside whose faces look into the void: depth 0 solid, depth 1
+    /// cavity, volume 8 - 1 = 7, nothing inside out. Flipping the inner cube makes it inside out.
+    #[test]
+    fn cube_with_cavity() {
+        let mut p: Vec<[f64; 3]> = CUBE_POINTS.iter().map(|q| q.map(|x| 2.0 * x)).collect();
+        p.extend(CUBE_POINTS.iter().map(|q| q.map(|x| x + 0.5)));
+        let mut t: Vec<[u32; 3]> = CUBE.to_vec();
+        t.extend(CUBE.iter().map(|f| [f[0] + 8, f[2] + 8, f[1] + 8]));
+        let a = run(&p, &t);
+        let roles: Vec<(usize, Role)> = a.shells.iter().map(|s| (s.depth, s.role)).collect();
+        assert_eq!(roles, vec![(0, Role::Solid), (1, Role::Cavity)]);
+        assert_eq!(a.inside_out_shells(), 0);
+        assert!((a.volume().unwrap() - 7.0).abs() < 1e-12);
+
+        t.truncate(12);
+        t.extend(CUBE.iter().map(|f| [f[0] + 8, f[1] + 8, f[2] + 8]));
+        let a = run(&p, &t);
+        assert_eq!(a.inside_out_shells(), 1);
+        assert!(a.shells[1].inside_out);
+        assert!((a.volume().unwrap() - 7.0).abs() < 1e-12);
+    }
+
+    /// Three triangles on edge 0-1: one non-manifold edge; both of its ends are non-manifold vertices
+    /// (each has three fans); one component that is not manifold, so no genus.
+    #[test]
+    fn three_faces_on_an_edge() {
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.5, 1.0, 0.0],
+            [0.5, -1.0, 0.0],
+            [0.5, 0.0, 1.0],
+        ];
+        let a = run(&p, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]]);
+        assert_eq!(a.nonmanifold_edges, 1);
+        assert_eq!(a.nonmanifold_vertices, 2);
+        assert_eq!(a.components.len(), 1);
+        let c = &a.components[0];
+        assert!(!c.manifold);
+        assert_eq!((c.vertices, c.edges, c.faces), (5, 7, 3));
+        assert_eq!(a.genus(), None);
+    }
+
+    /// Degenerate (repeated index), duplicate (reversed copy) and an unreferenced vertex on a cube.
+    #[test]
+    fn degenerate_duplicate_unreferenced() {
+        let mut p = CUBE_POINTS.to_vec();
+        p.push([5.0, 5.0, 5.0]);
+        let mut t = CUBE.to_vec();
+        t.push([0, 0, 1]);
+        t.push([0, 1, 2]);
+        let a = run(&p, &t);
+        assert_eq!(a.degenerate_faces, 1);
+        assert_eq!(a.duplicate_faces, 1);
+        assert_eq!(a.unreferenced_vertices, 1);
+        // The copy of 0-2-1 puts three faces on edges 0-1, 1-2 and 2-0.
+        assert_eq!(a.nonmanifold_edges, 3);
+    }
 }

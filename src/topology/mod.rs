@@ -139,7 +139,10 @@ impl Analysis {
     }
 
     pub fn cavities(&self) -> usize {
-        self.shells.iter().filter(|s| s.role == Role::Cavity).count()
+        self.shells
+            .iter()
+            .filter(|s| s.role == Role::Cavity)
+            .count()
     }
 
     pub fn inside_out_shells(&self) -> usize {
