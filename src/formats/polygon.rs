@@ -313,14 +313,27 @@ mod tests {
 
     #[test]
     fn convex_quad_is_a_fan() {
-        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
-        assert_eq!(split(&[0, 1, 2, 3], &p), (vec![[0, 1, 2], [0, 2, 3]], Split::Fan));
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        assert_eq!(
+            split(&[0, 1, 2, 3], &p),
+            (vec![[0, 1, 2], [0, 2, 3]], Split::Fan)
+        );
     }
 
     #[test]
     fn clockwise_quad_keeps_its_winding() {
         // Same square listed clockwise: the fan keeps the stored order (winding is the file's).
-        let p = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 0.0]];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+        ];
         let (t, s) = split(&[0, 1, 2, 3], &p);
         assert_eq!(s, Split::Fan);
         assert!(t.iter().all(|&t| area(t, &p) < 0.0));
@@ -375,14 +388,29 @@ mod tests {
 
     #[test]
     fn degenerate_inputs_fall_back_to_a_fan() {
-        let collinear = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]];
+        let collinear = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+        ];
         assert_eq!(split(&[0, 1, 2, 3], &collinear).1, Split::Fallback);
         let same = [[1.0, 1.0, 1.0]; 5];
         let (t, s) = split(&[0, 1, 2, 3, 4], &same);
         assert_eq!((t.len(), s), (3, Split::Fallback));
-        let nan = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [f64::NAN, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let nan = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [f64::NAN, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
         assert_eq!(split(&[0, 1, 2, 3], &nan).0.len(), 2);
-        let inf = [[0.0, 0.0, 0.0], [f64::INFINITY, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let inf = [
+            [0.0, 0.0, 0.0],
+            [f64::INFINITY, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
         assert_eq!(split(&[0, 1, 2, 3], &inf).0.len(), 2);
         // An index out of range (callers check, but this must not panic either).
         assert_eq!(split(&[0, 1, 2, 99], &collinear).0.len(), 2);
@@ -393,7 +421,12 @@ mod tests {
     #[test]
     fn self_intersecting_polygons_give_n_minus_2_triangles() {
         // Bowtie quad and a pentagram (all turns left, winding twice).
-        let bowtie = [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let bowtie = [
+            [0.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
         assert_eq!(split(&[0, 1, 2, 3], &bowtie).0.len(), 2);
         let star: Vec<[f64; 3]> = (0..5)
             .map(|k| {

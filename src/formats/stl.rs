@@ -76,7 +76,10 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
 }
 
 fn starts_with_solid(bytes: &[u8]) -> bool {
-    let start = bytes.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(bytes.len());
+    let start = bytes
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(bytes.len());
     bytes[start..]
         .get(..5)
         .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"))
@@ -217,7 +220,10 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             b"outer" => {}
             b"loop" => {
                 if in_loop {
-                    return err(line, "`outer loop` inside another loop (missing `endloop`)".into());
+                    return err(
+                        line,
+                        "`outer loop` inside another loop (missing `endloop`)".into(),
+                    );
                 }
                 in_loop = true;
                 loop_start = mesh.positions.len();
@@ -266,12 +272,14 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         }
     }
     if in_loop {
-        return err(tokens.line, "the file ends inside `outer loop` (truncated)".into());
+        return err(
+            tokens.line,
+            "the file ends inside `outer loop` (truncated)".into(),
+        );
     }
     if solids > 1 {
-        mesh.notes.push(format!(
-            "{solids} `solid` blocks read as one mesh"
-        ));
+        mesh.notes
+            .push(format!("{solids} `solid` blocks read as one mesh"));
     }
     tally.notes("line", &mut mesh.notes);
     Ok(mesh)
@@ -281,7 +289,14 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
 /// returned unchanged.
 fn keyword(tok: &[u8]) -> &[u8] {
     const WORDS: [&[u8]; 9] = [
-        b"solid", b"endsolid", b"facet", b"normal", b"endfacet", b"outer", b"loop", b"vertex",
+        b"solid",
+        b"endsolid",
+        b"facet",
+        b"normal",
+        b"endfacet",
+        b"outer",
+        b"loop",
+        b"vertex",
         b"endloop",
     ];
     WORDS
@@ -339,7 +354,10 @@ mod tests {
         let mut b = binary(&[TRI, TRI, TRI], b"");
         b.truncate(84 + 50 * 2 + 7);
         let e = parse(&b, &cx()).unwrap_err().0;
-        assert!(e.contains("declares 3 triangles") && e.contains("holds 2"), "{e}");
+        assert!(
+            e.contains("declares 3 triangles") && e.contains("holds 2"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -362,9 +380,12 @@ mod tests {
         let bad = b"solid x\nfacet normal 0 0 0\nouter loop\nvertex 1 zz 0\n";
         let e = parse(bad, &cx()).unwrap_err().0;
         assert!(e.contains("line 4") && e.contains("zz"), "{e}");
-        let e = parse(b"solid x\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\n", &cx())
-            .unwrap_err()
-            .0;
+        let e = parse(
+            b"solid x\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\n",
+            &cx(),
+        )
+        .unwrap_err()
+        .0;
         assert!(e.contains("truncated"), "{e}");
     }
 
