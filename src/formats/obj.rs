@@ -1,11 +1,585 @@
-//! OBJ (+MTL) reader.
+//! OBJ (+MTL) reader: our own line parser for the geometry, tobj only for the material library.
+//!
+//! tobj drops unreferenced vertices, renumbers them by first use, splits by `usemtl` and cannot
+//! name a line (CRATES.md 5.6); a validator needs the file's own vertex list. So `v` lines become
+//! `Mesh::positions` in file order, as stored (NaN kept), and `f` lines become triangles indexing
+//! them (1-based, negative = relative, polygons split by [`super::polygon`]). One file is one mesh
+//! whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` are recognised and skipped for
+//! now; points and lines are counted into notes. `mtllib` files are read with tobj under
+//! `catch_unwind` (it panics on short colour lines); any MTL trouble is a note, never an error.
 
-use std::path::Path;
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::path::{Component, Path};
 
+use super::polygon::{self, SplitTally};
 use super::{ReadContext, ReadError};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let _ = (path, cx);
-    Err(ReadError::new("not supported yet"))
+    let bytes = std::fs::read(path)?;
+    let parsed = parse(&bytes, cx)?;
+    let mut mesh = parsed.mesh;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    for (name, line) in &parsed.mtllibs {
+        // `mtllib a.mtl b.mtl` names several files; a single name with spaces is common too.
+        let several = name.contains(char::is_whitespace) && !folder.join(name).is_file();
+        let names: Vec<&str> = if several {
+            name.split_ascii_whitespace().collect()
+        } else {
+            vec![name.as_str()]
+        };
+        for name in names {
+            if let Some(note) = check_mtl(folder, name, *line) {
+                mesh.notes.push(note);
+            }
+        }
+    }
+    Ok(vec![mesh])
+}
+
+/// The geometry of a file and the `mtllib` names it asks for (with their lines).
+#[derive(Debug)]
+struct Parsed {
+    mesh: Mesh,
+    mtllibs: Vec<(String, u64)>,
+}
+
+/// Counts of skipped statements: keyword -> (lines, first line).
+type Skipped = BTreeMap<String, (u64, u64)>;
+
+/// Parses OBJ bytes. Errors name the line.
+fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Parsed, ReadError> {
+    let mut notes = Vec::new();
+    let text = decode(bytes, &mut notes)?;
+    let mut p = Parser {
+        cx,
+        mesh: Mesh::default(),
+        tally: SplitTally::default(),
+        poly: Vec::new(),
+        deferred: Vec::new(),
+        points: (0, 0),
+        lines: (0, 0),
+        skipped: Skipped::new(),
+        mtllibs: Vec::new(),
+        max_index: (0, 0),
+        odd_numbers: (0, 0),
+    };
+    // Rough preallocation from the file size (a vertex line is at least ~8 bytes); capped so a
+    // large file of comments does not reserve much.
+    p.mesh.positions.reserve((text.len() / 64).min(1 << 20));
+    p.mesh.triangles.reserve((text.len() / 64).min(1 << 20));
+
+    let mut joined = String::new();
+    let mut joined_line = 0u64;
+    for (k, raw) in text.split('\n').enumerate() {
+        let line_no = k as u64 + 1;
+        let line = raw.strip_suffix('\r').unwrap_or(raw);
+        // `\` at the end of a line continues the statement on the next line.
+        let trimmed = line.trim_end();
+        if let Some(head) = trimmed.strip_suffix('\\') {
+            if joined.is_empty() {
+                joined_line = line_no;
+            }
+            joined.push_str(head);
+            joined.push(' ');
+            continue;
+        }
+        if !joined.is_empty() {
+            joined.push_str(line);
+            let statement = std::mem::take(&mut joined);
+            p.statement(&statement, joined_line)?;
+            continue;
+        }
+        p.statement(line, line_no)?;
+    }
+    if !joined.is_empty() {
+        let statement = std::mem::take(&mut joined);
+        p.statement(&statement, joined_line)?;
+    }
+    p.finish(notes)
+}
+
+/// UTF-8 text of the file: BOM stripped, non-UTF-8 bytes replaced (with a note), UTF-16 refused.
+fn decode<'a>(bytes: &'a [u8], notes: &mut Vec<String>) -> Result<Cow<'a, str>, ReadError> {
+    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+        return Err(ReadError::new(
+            "the OBJ file is UTF-16 text: OBJ must be ASCII or UTF-8 - re-save it as UTF-8 (any \
+             text editor can convert it)",
+        ));
+    }
+    if let Some(nul) = bytes.iter().take(4096).position(|&b| b == 0) {
+        return Err(ReadError::new(format!(
+            "not a text OBJ file: binary data (a zero byte at offset {nul}) - check that the file \
+             really is an OBJ (a renamed or corrupted file?)"
+        )));
+    }
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    match std::str::from_utf8(bytes) {
+        Ok(s) => Ok(Cow::Borrowed(s)),
+        Err(e) => {
+            let line = bytes[..e.valid_up_to()]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count()
+                + 1;
+            notes.push(format!(
+                "the file is not valid UTF-8 (first bad byte on line {line}); the bad bytes were \
+                 replaced, which only matters for names"
+            ));
+            Ok(Cow::Owned(String::from_utf8_lossy(bytes).into_owned()))
+        }
+    }
+}
+
+struct Parser<'c> {
+    cx: &'c ReadContext,
+    mesh: Mesh,
+    tally: SplitTally,
+    /// Vertex indices of the face being read (reused: no allocation per line).
+    poly: Vec<u32>,
+    /// Faces that reference vertices defined later in the file: (first triangle slot, line,
+    /// indices). Split at the end, into the n-2 slots reserved in order.
+    deferred: Vec<(usize, u64, Vec<u32>)>,
+    /// (count, first line) of `p` and `l` statements.
+    points: (u64, u64),
+    lines: (u64, u64),
+    skipped: Skipped,
+    mtllibs: Vec<(String, u64)>,
+    /// Largest 1-based positive face index and its line, checked against the final vertex count.
+    max_index: (u64, u64),
+    /// (count, first line) of coordinates written in C's `1.#IND`/`1.#QNAN` style, read as NaN.
+    odd_numbers: (u64, u64),
+}
+
+fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
+    ReadError::new(format!("OBJ line {line}: {what}"))
+}
+
+impl Parser<'_> {
+    fn statement(&mut self, line: &str, line_no: u64) -> Result<(), ReadError> {
+        let line = strip_comment(line);
+        let mut words = line.split_ascii_whitespace();
+        let Some(keyword) = words.next() else {
+            return Ok(());
+        };
+        match keyword {
+            "v" => self.vertex(words, line_no),
+            "f" | "fo" => self.face(words, line_no),
+            "vt" | "vn" | "vp" | "o" | "g" | "s" | "usemtl" => Ok(()),
+            "mtllib" => {
+                let rest = line.trim_start()["mtllib".len()..].trim();
+                if !rest.is_empty() {
+                    self.mtllibs.push((rest.to_owned(), line_no));
+                }
+                Ok(())
+            }
+            "p" => {
+                count(&mut self.points, line_no);
+                Ok(())
+            }
+            "l" => {
+                count(&mut self.lines, line_no);
+                Ok(())
+            }
+            other => {
+                if self.skipped.len() < 32 || self.skipped.contains_key(other) {
+                    let name: String = other.chars().take(24).collect();
+                    let e = self.skipped.entry(name).or_insert((0, line_no));
+                    e.0 += 1;
+                } else {
+                    let e = self.skipped.entry("...".into()).or_insert((0, line_no));
+                    e.0 += 1;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn vertex<'a>(
+        &mut self,
+        mut words: impl Iterator<Item = &'a str>,
+        line_no: u64,
+    ) -> Result<(), ReadError> {
+        let mut p = [0.0f64; 3];
+        for (axis, c) in p.iter_mut().enumerate() {
+            let Some(w) = words.next() else {
+                return Err(line_err(
+                    line_no,
+                    format!(
+                        "vertex has {axis} coordinate(s), needs x y z - fix the line or re-export"
+                    ),
+                ));
+            };
+            *c = match w.parse::<f64>() {
+                Ok(x) => x,
+                Err(_) if w.contains("#IND") || w.contains("#QNAN") || w.contains("#INF") => {
+                    count(&mut self.odd_numbers, line_no);
+                    f64::NAN
+                }
+                Err(_) => {
+                    return Err(line_err(
+                        line_no,
+                        format!("`{}` is not a number - fix the line or re-export", short(w)),
+                    ))
+                }
+            };
+        }
+        if self.mesh.positions.len() as u64 >= self.cx.limits.max_triangles {
+            return Err(over_limit("vertices", self.cx));
+        }
+        self.mesh.positions.push(p);
+        Ok(())
+    }
+
+    fn face<'a>(
+        &mut self,
+        words: impl Iterator<Item = &'a str>,
+        line_no: u64,
+    ) -> Result<(), ReadError> {
+        let n = self.mesh.positions.len() as i64;
+        self.poly.clear();
+        let mut forward = false;
+        for w in words {
+            let v = w.split('/').next().unwrap_or("");
+            let i: i64 = v.parse().map_err(|_| {
+                line_err(
+                    line_no,
+                    format!(
+                        "face corner `{}` does not start with a vertex index - fix the line or re-export",
+                        short(w)
+                    ),
+                )
+            })?;
+            let index = match i {
+                0 => {
+                    return Err(line_err(
+                        line_no,
+                        "face index 0: OBJ indices start at 1 - the exporter is broken, re-export",
+                    ))
+                }
+                i if i < 0 => {
+                    let abs = n + i;
+                    if abs < 0 {
+                        return Err(line_err(
+                            line_no,
+                            format!(
+                                "relative face index {i} points before the first vertex (only {n} \
+                                 vertices so far) - fix the face or re-export"
+                            ),
+                        ));
+                    }
+                    abs as u64
+                }
+                i => {
+                    let i = i as u64;
+                    if i > self.max_index.0 {
+                        self.max_index = (i, line_no);
+                    }
+                    if i > n as u64 {
+                        forward = true;
+                    }
+                    i - 1
+                }
+            };
+            if index >= u32::MAX as u64 {
+                return Err(line_err(line_no, format!("face index {i} is out of range")));
+            }
+            self.poly.push(index as u32);
+        }
+        let before = self.mesh.triangles.len();
+        if forward && self.poly.len() > 3 {
+            // Positions not known yet: reserve the n-2 slots, split at the end.
+            self.deferred.push((before, line_no, self.poly.clone()));
+            self.mesh
+                .triangles
+                .extend(std::iter::repeat_n([0; 3], self.poly.len() - 2));
+        } else if forward {
+            let split = polygon::triangulate(&self.poly, &[], &mut self.mesh.triangles);
+            self.tally.add(split, line_no);
+        } else {
+            let split =
+                polygon::triangulate(&self.poly, &self.mesh.positions, &mut self.mesh.triangles);
+            self.tally.add(split, line_no);
+        }
+        if self.mesh.triangles.len() as u64 > self.cx.limits.max_triangles {
+            return Err(over_limit("triangles", self.cx));
+        }
+        Ok(())
+    }
+
+    fn finish(mut self, mut notes: Vec<String>) -> Result<Parsed, ReadError> {
+        let n = self.mesh.positions.len() as u64;
+        let (max, line) = self.max_index;
+        if max > n {
+            return Err(line_err(
+                line,
+                format!(
+                    "face index {max} is out of range: the file has only {n} vertices - the file is \
+                     truncated or broken, re-export it"
+                ),
+            ));
+        }
+        if let Some(&(_, first, _)) = self.deferred.first() {
+            notes.push(format!(
+                "faces reference vertices defined later in the file (first at line {first}); read \
+                 anyway"
+            ));
+        }
+        let mut scratch = Vec::new();
+        for (slot, line, poly) in std::mem::take(&mut self.deferred) {
+            scratch.clear();
+            let split = polygon::triangulate(&poly, &self.mesh.positions, &mut scratch);
+            self.tally.add(split, line);
+            self.mesh.triangles[slot..slot + scratch.len()].copy_from_slice(&scratch);
+        }
+        self.tally.notes("line", &mut notes);
+        if self.points.0 > 0 {
+            notes.push(format!(
+                "{} point statement(s) (`p`) skipped (first at line {})",
+                self.points.0, self.points.1
+            ));
+        }
+        if self.lines.0 > 0 {
+            notes.push(format!(
+                "{} line statement(s) (`l`) skipped (first at line {})",
+                self.lines.0, self.lines.1
+            ));
+        }
+        if self.odd_numbers.0 > 0 {
+            notes.push(format!(
+                "{} coordinate(s) written as `1.#IND`/`1.#QNAN` (a C library's NaN) read as NaN \
+                 (first at line {})",
+                self.odd_numbers.0, self.odd_numbers.1
+            ));
+        }
+        for (keyword, (times, first)) in &self.skipped {
+            notes.push(format!(
+                "{times} line(s) with unknown keyword `{keyword}` skipped (first at line {first})"
+            ));
+        }
+        self.mesh.notes = notes;
+        Ok(Parsed {
+            mesh: self.mesh,
+            mtllibs: self.mtllibs,
+        })
+    }
+}
+
+/// The line up to a `#` that starts a word (a `#` inside a word is part of it: `1.#IND`).
+fn strip_comment(line: &str) -> &str {
+    let b = line.as_bytes();
+    let mut from = 0;
+    while let Some(i) = line[from..].find('#') {
+        let at = from + i;
+        if at == 0 || b[at - 1].is_ascii_whitespace() {
+            return &line[..at];
+        }
+        from = at + 1;
+    }
+    line
+}
+
+fn count(c: &mut (u64, u64), line: u64) {
+    if c.0 == 0 {
+        c.1 = line;
+    }
+    c.0 += 1;
+}
+
+fn short(w: &str) -> String {
+    w.chars().take(40).collect()
+}
+
+fn over_limit(what: &str, cx: &ReadContext) -> ReadError {
+    ReadError::new(format!(
+        "the file has more than {} {what}, over the limit: raise limits.max_triangles in the \
+         config to scan it",
+        cx.limits.max_triangles
+    ))
+}
+
+/// Reads the material library `name` (from `mtllib` on `line`) next to the OBJ. Returns a note
+/// when it is missing, unsafe to open or unreadable; `None` when it reads fine.
+fn check_mtl(folder: &Path, name: &str, line: u64) -> Option<String> {
+    let rel = Path::new(name);
+    let climbs = {
+        let mut depth = 0i64;
+        let mut out = false;
+        for c in rel.components() {
+            match c {
+                Component::ParentDir => depth -= 1,
+                Component::Normal(_) => depth += 1,
+                Component::CurDir => {}
+                Component::RootDir | Component::Prefix(_) => out = true,
+            }
+            out |= depth < 0;
+        }
+        out
+    };
+    if rel.is_absolute() || climbs || name.contains(':') {
+        return Some(format!(
+            "material library `{name}` (line {line}) not read: its path is absolute or leaves the \
+             OBJ's folder; materials do not affect the checks"
+        ));
+    }
+    let bytes = match std::fs::read(folder.join(rel)) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Some(format!(
+                "material library `{name}` (line {line}) not found next to the OBJ; materials do \
+                 not affect the checks, but ship the .mtl with the model"
+            ))
+        }
+        Err(e) => {
+            return Some(format!(
+                "material library `{name}` (line {line}) could not be read: {e}"
+            ))
+        }
+    };
+    check_mtl_bytes(name, &bytes)
+}
+
+/// Parses MTL bytes with tobj; trouble (including a tobj panic) becomes a note.
+fn check_mtl_bytes(name: &str, bytes: &[u8]) -> Option<String> {
+    // tobj panics on colour lines with fewer than 3 numbers (CRATES.md 5.1); find them first so
+    // the note can name the line, and never hand them to tobj.
+    let text = String::from_utf8_lossy(bytes);
+    for (k, l) in text.lines().enumerate() {
+        let mut w = l.split_ascii_whitespace();
+        if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke" | "Tf")) = w.next() {
+            let n = w.take_while(|t| !t.starts_with('#')).count();
+            let spectral = l.contains("spectral") || l.contains("xyz");
+            if n < 3 && !spectral {
+                return Some(format!(
+                    "material library `{name}` line {}: colour `{key}` has {n} value(s), needs 3; \
+                     materials were not read (they do not affect the checks)",
+                    k + 1
+                ));
+            }
+        }
+    }
+    let mut reader = std::io::BufReader::new(bytes);
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_mtl_buf(&mut reader)
+    })) {
+        Ok(Ok(_)) => None,
+        Ok(Err(e)) => Some(format!(
+            "material library `{name}` could not be parsed ({e}); materials do not affect the checks"
+        )),
+        Err(_) => Some(format!(
+            "material library `{name}` crashed the MTL parser; materials were not read (they do \
+             not affect the checks)"
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::Limits;
+
+    fn cx() -> ReadContext {
+        ReadContext {
+            root: ".".into(),
+            limits: Limits::default(),
+        }
+    }
+
+    fn mesh(s: &str) -> Mesh {
+        parse(s.as_bytes(), &cx()).unwrap().mesh
+    }
+
+    fn err(s: &[u8]) -> String {
+        parse(s, &cx()).unwrap_err().0
+    }
+
+    #[test]
+    fn all_corner_forms_and_relative_indices() {
+        let m = mesh(
+            "# quad and triangle\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
+             f 1 2/1 3//1 4/1/1\nf -4 -3 -1\n",
+        );
+        assert_eq!(m.positions.len(), 4);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 3]]);
+        assert!(m.notes.is_empty(), "{:?}", m.notes);
+    }
+
+    #[test]
+    fn unreferenced_vertices_and_file_order_are_kept() {
+        let m = mesh("v 9 9 9\no a\nv 0 0 0\nv 1 0 0\ng b\nusemtl m\nv 0 1 0\nf 4 3 2\n");
+        assert_eq!(m.positions.len(), 4);
+        assert_eq!(m.positions[0], [9.0, 9.0, 9.0]);
+        assert_eq!(m.triangles, vec![[3, 2, 1]]);
+    }
+
+    #[test]
+    fn continuation_comments_bom_and_crlf() {
+        let m = mesh("\u{feff}v 0 0 0 # origin\r\nv 1 \\\r\n 0 0\r\nv 0 1 0\r\nf 1 2 \\\n 3\r\n");
+        assert_eq!(m.positions[1], [1.0, 0.0, 0.0]);
+        assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn nan_kept_points_lines_and_unknown_noted() {
+        let m = mesh("v nan 0 0\nv 1 0 0\nv 1.#IND 1 0\np 1\nl 1 2\nl 2 3\ncurv 0 1 1 2\nf 1 2 3\n");
+        assert!(m.positions[0][0].is_nan() && m.positions[2][0].is_nan());
+        assert_eq!(m.triangles.len(), 1);
+        let notes = m.notes.join("\n");
+        assert!(notes.contains("1 point statement"), "{notes}");
+        assert!(notes.contains("2 line statement"), "{notes}");
+        assert!(notes.contains("`curv`"), "{notes}");
+        assert!(notes.contains("1.#IND"), "{notes}");
+    }
+
+    #[test]
+    fn bad_indices_name_the_line() {
+        assert!(err(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n").contains("line 4: face index 0"));
+        let e = err(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+        assert!(e.contains("line 4") && e.contains("only 3 vertices"), "{e}");
+        let e = err(b"v 0 0 0\nf -1 -2 -3\n");
+        assert!(e.contains("line 2") && e.contains("relative"), "{e}");
+        let e = err(b"v 0 0 0\nv 1 x 0\n");
+        assert!(e.contains("line 2") && e.contains("`x`"), "{e}");
+        assert!(err(b"v 1 2\n").contains("needs x y z"));
+        assert!(err(b"f a b c\n").contains("line 1"));
+    }
+
+    #[test]
+    fn forward_references_are_resolved_in_order() {
+        let m = mesh("f 1 2 3 4\nf 1 2 3\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n");
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
+        assert!(m.notes.iter().any(|n| n.contains("defined later")));
+    }
+
+    #[test]
+    fn encodings() {
+        assert!(err(b"\xff\xfev\x000\x00").contains("UTF-16"));
+        assert!(err(b"\x89PNG\r\n\x1a\n\0\0\0").contains("binary data"));
+        let m = parse(b"o caf\xe9\nv 0 0 0\n", &cx()).unwrap().mesh;
+        assert_eq!(m.positions.len(), 1);
+        assert!(m.notes[0].contains("not valid UTF-8"), "{:?}", m.notes);
+    }
+
+    #[test]
+    fn limits() {
+        let mut c = cx();
+        c.limits.max_triangles = 1;
+        let e = parse(b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", &c).unwrap_err().0;
+        assert!(e.contains("max_triangles"), "{e}");
+    }
+
+    #[test]
+    fn mtl_problems_are_notes() {
+        let n = check_mtl_bytes("a.mtl", b"newmtl m\nKd 1 0\n").unwrap();
+        assert!(n.contains("line 2") && n.contains("Kd"), "{n}");
+        assert_eq!(check_mtl_bytes("a.mtl", b"newmtl m\nKd 1 0 0\n"), None);
+        let n = check_mtl(Path::new("."), "../x.mtl", 3).unwrap();
+        assert!(n.contains("leaves the OBJ's folder"), "{n}");
+        let n = check_mtl(Path::new("."), "/etc/x.mtl", 3).unwrap();
+        assert!(n.contains("absolute"), "{n}");
+        assert!(check_mtl(Path::new("."), "sub/../nope.mtl", 3)
+            .unwrap()
+            .contains("not found"));
+    }
 }
