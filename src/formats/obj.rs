@@ -251,37 +251,36 @@ impl Parser<'_> {
                     ),
                 )
             })?;
-            let index = match i {
-                0 => {
-                    return Err(line_err(
+            let index =
+                match i {
+                    0 => return Err(line_err(
                         line_no,
                         "face index 0: OBJ indices start at 1 - the exporter is broken, re-export",
-                    ))
-                }
-                i if i < 0 => {
-                    let abs = n + i;
-                    if abs < 0 {
-                        return Err(line_err(
-                            line_no,
-                            format!(
+                    )),
+                    i if i < 0 => {
+                        let abs = n + i;
+                        if abs < 0 {
+                            return Err(line_err(
+                                line_no,
+                                format!(
                                 "relative face index {i} points before the first vertex (only {n} \
                                  vertices so far) - fix the face or re-export"
                             ),
-                        ));
+                            ));
+                        }
+                        abs as u64
                     }
-                    abs as u64
-                }
-                i => {
-                    let i = i as u64;
-                    if i > self.max_index.0 {
-                        self.max_index = (i, line_no);
+                    i => {
+                        let i = i as u64;
+                        if i > self.max_index.0 {
+                            self.max_index = (i, line_no);
+                        }
+                        if i > n as u64 {
+                            forward = true;
+                        }
+                        i - 1
                     }
-                    if i > n as u64 {
-                        forward = true;
-                    }
-                    i - 1
-                }
-            };
+                };
             if index >= u32::MAX as u64 {
                 return Err(line_err(line_no, format!("face index {i} is out of range")));
             }
@@ -522,7 +521,8 @@ mod tests {
 
     #[test]
     fn nan_kept_points_lines_and_unknown_noted() {
-        let m = mesh("v nan 0 0\nv 1 0 0\nv 1.#IND 1 0\np 1\nl 1 2\nl 2 3\ncurv 0 1 1 2\nf 1 2 3\n");
+        let m =
+            mesh("v nan 0 0\nv 1 0 0\nv 1.#IND 1 0\np 1\nl 1 2\nl 2 3\ncurv 0 1 1 2\nf 1 2 3\n");
         assert!(m.positions[0][0].is_nan() && m.positions[2][0].is_nan());
         assert_eq!(m.triangles.len(), 1);
         let notes = m.notes.join("\n");
