@@ -330,7 +330,10 @@ impl Parser<'_> {
             scratch.clear();
             let split = polygon::triangulate(&poly, &self.mesh.positions, &mut scratch);
             self.tally.add(split, line);
-            self.mesh.triangles[slot..slot + scratch.len()].copy_from_slice(&scratch);
+            // Always n - 2 triangles, the number of slots reserved.
+            if let Some(dst) = self.mesh.triangles.get_mut(slot..slot + scratch.len()) {
+                dst.copy_from_slice(&scratch);
+            }
         }
         self.tally.notes("line", &mut notes);
         if self.points.0 > 0 {

@@ -1,11 +1,321 @@
-//! OFF reader.
+//! OFF reader (ASCII; binary OFF is refused with a message).
+//!
+//! Header: a keyword `[ST][C][N][4]OFF` (texture coordinates, colour, normal and homogeneous
+//! variants; the extra per-vertex values are skipped), then `vertices faces edges`, on the same line
+//! or the next. `#` starts a comment anywhere. Each vertex is a line whose first three numbers are
+//! x y z (the rest of the line, whatever the variant, is ignored); each face is a line
+//! `n i0 ... i(n-1) [colour]`. Counts are checked against the file size before anything is
+//! allocated, indices are range-checked, and polygons are split by [`super::polygon`].
 
 use std::path::Path;
 
+use super::polygon::{self, SplitTally};
 use super::{ReadContext, ReadError};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let _ = (path, cx);
-    Err(ReadError::new("not supported yet"))
+    let bytes = std::fs::read(path)?;
+    parse(&bytes, cx).map(|m| vec![m])
+}
+
+/// Non-empty, comment-free lines with their 1-based numbers.
+struct Lines<'a> {
+    rest: &'a [u8],
+    line: u64,
+}
+
+impl<'a> Lines<'a> {
+    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        while !self.rest.is_empty() {
+            let end = self
+                .rest
+                .iter()
+                .position(|&b| b == b'\n')
+                .unwrap_or(self.rest.len());
+            let mut line = &self.rest[..end];
+            self.rest = self.rest.get(end + 1..).unwrap_or(&[]);
+            self.line += 1;
+            if let Some(hash) = line.iter().position(|&b| b == b'#') {
+                line = &line[..hash];
+            }
+            let line = line.trim_ascii();
+            if !line.is_empty() {
+                return Some((line, self.line));
+            }
+        }
+        None
+    }
+}
+
+fn words(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(|b| b.is_ascii_whitespace())
+        .filter(|w| !w.is_empty())
+}
+
+fn text(w: &[u8]) -> String {
+    String::from_utf8_lossy(&w[..w.len().min(40)]).into_owned()
+}
+
+fn number<T: std::str::FromStr>(w: &[u8]) -> Option<T> {
+    std::str::from_utf8(w).ok()?.parse().ok()
+}
+
+fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
+    ReadError::new(format!("OFF line {line}: {what}"))
+}
+
+fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+    let mut mesh = Mesh::default();
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let mut lines = Lines {
+        rest: bytes,
+        line: 0,
+    };
+    let Some((first, first_no)) = lines.next() else {
+        mesh.notes.push("the file is empty".into());
+        return Ok(mesh);
+    };
+    let mut head = words(first);
+    let keyword = head.next().unwrap_or_default();
+    let Some(prefix) = keyword
+        .len()
+        .checked_sub(3)
+        .filter(|&k| keyword[k..].eq_ignore_ascii_case(b"OFF"))
+        .map(|k| &keyword[..k])
+    else {
+        let what = if first.iter().any(|&b| b < 0x09 || b >= 0x80) {
+            "binary data".to_string()
+        } else {
+            format!("`{}`", text(keyword))
+        };
+        return Err(ReadError::new(format!(
+            "not an OFF file: it starts with {what} instead of `OFF` - check that the file really \
+             is an OFF (a renamed or corrupted file?)"
+        )));
+    };
+    // `nOFF` (lower-case n right before OFF) means vertices of any dimension; `NOFF` means
+    // normals, which are just extra numbers on the vertex line.
+    if prefix.ends_with(b"n") {
+        return Err(line_err(
+            first_no,
+            "nOFF (vertices of any dimension) is not supported - convert the file to 3D OFF",
+        ));
+    }
+    if prefix.contains(&b'4') {
+        mesh.notes
+            .push("4OFF: the homogeneous w coordinate was ignored".into());
+    }
+    // Counts: on the keyword line after it, or on the next line.
+    let mut counts: Vec<&[u8]> = head.collect();
+    if counts
+        .first()
+        .is_some_and(|w| w.eq_ignore_ascii_case(b"BINARY"))
+    {
+        return Err(ReadError::new(
+            "binary OFF is not supported - convert the file to ASCII OFF, PLY or STL",
+        ));
+    }
+    let mut counts_no = first_no;
+    if counts.is_empty() {
+        let Some((l, no)) = lines.next() else {
+            mesh.notes
+                .push("OFF header without counts: no vertices or faces".into());
+            return Ok(mesh);
+        };
+        counts = words(l).collect();
+        counts_no = no;
+    }
+    let count = |k: usize, what: &str| -> Result<u64, ReadError> {
+        let w = counts.get(k).ok_or_else(|| {
+            line_err(
+                counts_no,
+                format!("the header has no {what} count - it needs `vertices faces edges`"),
+            )
+        })?;
+        number::<u64>(w).ok_or_else(|| {
+            line_err(
+                counts_no,
+                format!("{what} count `{}` is not a whole number", text(w)),
+            )
+        })
+    };
+    let n_vertices = count(0, "vertex")?;
+    let n_faces = count(1, "face")?;
+    // The edge count is optional and unused.
+
+    // Each vertex line takes at least 6 bytes ("0 0 0\n"), each face at least 2 ("0\n").
+    let have = lines.rest.len() as u128;
+    let need = n_vertices as u128 * 6 + n_faces as u128 * 2;
+    if need > have + 1 {
+        return Err(ReadError::new(format!(
+            "truncated OFF: the header declares {n_vertices} vertices and {n_faces} faces (at least \
+             {need} bytes), but only {have} bytes follow it - re-export the file"
+        )));
+    }
+    for (n, what) in [(n_vertices, "vertices"), (n_faces, "faces")] {
+        if n > cx.limits.max_triangles {
+            return Err(ReadError::new(format!(
+                "the OFF header declares {n} {what}, over the limit of {}: raise \
+                 limits.max_triangles in the config to scan it",
+                cx.limits.max_triangles
+            )));
+        }
+    }
+    if n_vertices >= u32::MAX as u64 {
+        return Err(ReadError::new(format!(
+            "the OFF header declares {n_vertices} vertices, more than meshvet can index"
+        )));
+    }
+    // Backed by the size check: at least 6 bytes per vertex are in the file.
+    mesh.positions.reserve_exact(n_vertices as usize);
+    mesh.triangles.reserve(n_faces as usize);
+
+    for k in 0..n_vertices {
+        let Some((l, no)) = lines.next() else {
+            return Err(ReadError::new(format!(
+                "truncated OFF: the file ends after {k} of {n_vertices} vertices - re-export it"
+            )));
+        };
+        let mut p = [0.0f64; 3];
+        let mut w = words(l);
+        for (axis, c) in p.iter_mut().enumerate() {
+            let Some(word) = w.next() else {
+                return Err(line_err(
+                    no,
+                    format!("vertex {k} has {axis} coordinate(s), needs x y z"),
+                ));
+            };
+            *c = number(word).ok_or_else(|| {
+                line_err(no, format!("vertex {k}: `{}` is not a number", text(word)))
+            })?;
+        }
+        mesh.positions.push(p);
+    }
+
+    let mut tally = SplitTally::default();
+    let mut poly = Vec::new();
+    for k in 0..n_faces {
+        let Some((l, no)) = lines.next() else {
+            return Err(ReadError::new(format!(
+                "truncated OFF: the file ends after {k} of {n_faces} faces - re-export it"
+            )));
+        };
+        let mut w = words(l);
+        let first = w.next().unwrap_or_default();
+        let n: usize = number(first).ok_or_else(|| {
+            line_err(
+                no,
+                format!("face {k}: `{}` is not a vertex count", text(first)),
+            )
+        })?;
+        poly.clear();
+        for _ in 0..n {
+            let Some(word) = w.next() else {
+                return Err(line_err(
+                    no,
+                    format!("face {k} declares {n} vertices but lists fewer"),
+                ));
+            };
+            let i: i64 = number(word).ok_or_else(|| {
+                line_err(
+                    no,
+                    format!("face {k}: `{}` is not a vertex index", text(word)),
+                )
+            })?;
+            if i < 0 || i as u64 >= n_vertices {
+                return Err(line_err(
+                    no,
+                    format!(
+                        "face {k}: vertex index {i} is out of range (the file has {n_vertices} \
+                         vertices; OFF indices start at 0) - the file is broken, re-export it"
+                    ),
+                ));
+            }
+            poly.push(i as u32);
+        }
+        // Anything after the indices is the face colour.
+        let split = polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
+        tally.add(split, no);
+        if mesh.triangles.len() as u64 > cx.limits.max_triangles {
+            return Err(ReadError::new(format!(
+                "the file has more than {} triangles, over the limit: raise limits.max_triangles \
+                 in the config to scan it",
+                cx.limits.max_triangles
+            )));
+        }
+    }
+    tally.notes("line", &mut mesh.notes);
+    if lines.next().is_some() {
+        mesh.notes.push(format!(
+            "data after the {n_faces} declared faces was ignored (from line {})",
+            lines.line
+        ));
+    }
+    Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::Limits;
+
+    fn cx() -> ReadContext {
+        ReadContext {
+            root: ".".into(),
+            limits: Limits::default(),
+        }
+    }
+
+    fn ok(s: &str) -> Mesh {
+        parse(s.as_bytes(), &cx()).unwrap()
+    }
+
+    fn err(s: &str) -> String {
+        parse(s.as_bytes(), &cx()).unwrap_err().0
+    }
+
+    #[test]
+    fn plain_and_variants() {
+        let m =
+            ok("OFF\n# square\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 255 0 0\n3 0 1 3\n");
+        assert_eq!(m.positions.len(), 4);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 3]]);
+        let m = ok("COFF 3 1 0\n0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n");
+        assert_eq!((m.positions.len(), m.triangles.len()), (3, 1));
+        let m = ok("NOFF\n3 1 3\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1 # n\n\n3 2 1 0\n");
+        assert_eq!(m.triangles, vec![[2, 1, 0]]);
+        let m = ok(
+            "STCNOFF\n3 1 0\n0 0 0 0 0 1 0 0 0 0 1 1\n1 0 0 0 0 1 0 0 0 0 1 1\n\
+                    0 1 0 0 0 1 0 0 0 0 1 1\n3 0 1 2\n",
+        );
+        assert_eq!(m.triangles.len(), 1);
+    }
+
+    #[test]
+    fn nan_kept_and_errors_named() {
+        let m = ok("OFF\n3 1 0\nnan 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+        assert!(m.positions[0][0].is_nan());
+        let e = err("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n");
+        assert!(e.contains("line 6") && e.contains("index 3"), "{e}");
+        let e = err("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 -1\n");
+        assert!(e.contains("-1"), "{e}");
+        let e = err("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n");
+        assert!(e.contains("line 4") && e.contains("`x`"), "{e}");
+        assert!(err("OFF BINARY\n").contains("binary OFF"));
+        assert!(err("PLY\n").contains("not an OFF"));
+        assert!(err("\u{89}PNG\n").contains("not an OFF"));
+    }
+
+    #[test]
+    fn counts_checked_before_allocating() {
+        let e = err("OFF\n4000000000 1 0\n0 0 0\n");
+        assert!(
+            e.contains("truncated OFF") && e.contains("4000000000"),
+            "{e}"
+        );
+        let e = err("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+        assert!(e.contains("1 of 2 faces"), "{e}");
+        assert!(ok("").triangles.is_empty());
+        assert!(ok("# nothing\n").triangles.is_empty());
+    }
 }

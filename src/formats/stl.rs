@@ -121,6 +121,11 @@ fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {
 
 fn parse_binary(bytes: &[u8], n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
     check_limit(n, cx)?;
+    if 3 * n > u32::MAX as u64 {
+        return Err(ReadError::new(format!(
+            "binary STL with {n} triangles: more vertices than meshvet can index"
+        )));
+    }
     // The size matched 84 + 50 n, so n facets are really there: the allocation is backed by data.
     let n = n as usize;
     let mut positions = Vec::with_capacity(3 * n);
