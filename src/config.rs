@@ -1,1 +1,338 @@
-//! TODO
+//! The config: a TOML schema ([`Config`], every key optional), its discovery (`--config FILE`, else
+//! the nearest `meshvet.toml` upward from the current folder, else built-in defaults) and the one merge
+//! path that turns defaults + file + command-line flags into resolved [`Settings`].
+//!
+//! Command-line flags are parsed into the same [`Config`] type as a file, so a flag and a key can
+//! never disagree about what they mean. Unknown keys and unknown rule names are errors that say where
+//! (file, line) and suggest the closest known name.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::formats::Limits;
+use crate::rules::{Rule, Severities, Severity};
+use crate::topology::Options;
+
+/// The file name looked for upward from the current folder.
+pub const FILE_NAME: &str = "meshvet.toml";
+
+/// One layer of configuration, as a TOML file or the command line states it. `None`: not stated.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Rule name -> severity. Names are checked against [`Rule::ALL`] after parsing so an unknown one
+    /// can be reported with its line and a suggestion.
+    pub rules: Option<BTreeMap<Spanned<String>, Severity>>,
+    /// Weld distance; `0` welds only exactly equal positions.
+    pub weld_tolerance: Option<f64>,
+    /// Globs a file's path must match one of (empty: every file).
+    pub include: Option<Vec<String>>,
+    /// Globs that leave a file (or a whole folder) out of the scan.
+    pub exclude: Option<Vec<String>>,
+    pub limits: Option<LimitsConfig>,
+    /// Worker threads; `0`: one per core.
+    pub jobs: Option<usize>,
+}
+
+/// The `[limits]` table.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsConfig {
+    pub max_file_bytes: Option<u64>,
+    pub max_triangles: Option<u64>,
+}
+
+/// Everything a scan needs to know, resolved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    pub severities: Severities,
+    pub weld_tolerance: f64,
+    pub include: Vec<String>,
+    pub exclude: Vec<String>,
+    pub limits: Limits,
+    /// Worker threads; `0`: one per core.
+    pub jobs: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Settings {
+        Settings {
+            severities: Severities::default(),
+            weld_tolerance: 0.0,
+            include: Vec::new(),
+            exclude: Vec::new(),
+            limits: Limits::default(),
+            jobs: 0,
+        }
+    }
+}
+
+impl Settings {
+    /// These settings with a config layer on top: every key the layer states replaces the value
+    /// below it; rule severities are replaced one rule at a time.
+    pub fn merge(mut self, layer: &Config) -> Settings {
+        if let Some(rules) = &layer.rules {
+            for (name, &severity) in rules {
+                // Names were checked when the layer was parsed; an unknown one cannot get here.
+                if let Some(rule) = Rule::from_name(name.get_ref()) {
+                    self.severities.set(rule, severity);
+                }
+            }
+        }
+        if let Some(t) = layer.weld_tolerance {
+            self.weld_tolerance = t;
+        }
+        if let Some(globs) = &layer.include {
+            self.include = globs.clone();
+        }
+        if let Some(globs) = &layer.exclude {
+            self.exclude = globs.clone();
+        }
+        if let Some(limits) = &layer.limits {
+            if let Some(n) = limits.max_file_bytes {
+                self.limits.max_file_bytes = n;
+            }
+            if let Some(n) = limits.max_triangles {
+                self.limits.max_triangles = n;
+            }
+        }
+        if let Some(jobs) = layer.jobs {
+            self.jobs = jobs;
+        }
+        self
+    }
+
+    /// The analysis options these settings ask for.
+    pub fn options(&self) -> Options {
+        Options {
+            weld_tolerance: self.weld_tolerance,
+        }
+    }
+}
+
+/// A config that cannot be used. The message names the file and line and says what to do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigError {
+    pub path: PathBuf,
+    /// 1-based line and column, when known.
+    pub position: Option<(usize, usize)>,
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some((line, column)) = self.position {
+            write!(f, ":{line}:{column}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+impl Config {
+    /// Parses and checks a config file's text. `path` is only used in error messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Config, ConfigError> {
+        let error = |span: Option<Range<usize>>, message: String| ConfigError {
+            path: path.to_owned(),
+            position: span.map(|s| position(text, s.start)),
+            message,
+        };
+        let config: Config = toml::from_str(text).map_err(|e| {
+            let message = e.message().trim_end().to_owned();
+            let message = match suggest_for_unknown_field(&message) {
+                Some(known) => format!("{message}; did you mean `{known}`?"),
+                None => message,
+            };
+            error(e.span(), message)
+        })?;
+        if let Some(tolerance) = config.weld_tolerance {
+            if !(tolerance >= 0.0 && tolerance.is_finite()) {
+                return Err(error(
+                    None,
+                    format!("weld_tolerance must be a finite number >= 0, not {tolerance}"),
+                ));
+            }
+        }
+        for name in config.rules.iter().flat_map(|rules| rules.keys()) {
+            if Rule::from_name(name.get_ref()).is_none() {
+                let names = Rule::ALL.map(Rule::name);
+                let hint = match closest(name.get_ref(), &names) {
+                    Some(known) => format!("did you mean `{known}`?"),
+                    None => format!("known rules: {}", names.join(", ")),
+                };
+                return Err(error(
+                    Some(name.span()),
+                    format!("unknown rule `{}` in [rules]: {hint}", name.get_ref()),
+                ));
+            }
+        }
+        Ok(config)
+    }
+
+    /// Reads and parses a config file.
+    pub fn read(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            path: path.to_owned(),
+            position: None,
+            message: format!("cannot read the config: {e}"),
+        })?;
+        Config::parse(&text, path)
+    }
+}
+
+/// The nearest `meshvet.toml` in `start` or a folder above it.
+pub fn discover(start: &Path) -> Option<PathBuf> {
+    start
+        .ancestors()
+        .map(|dir| dir.join(FILE_NAME))
+        .find(|candidate| candidate.is_file())
+}
+
+/// The settings for a run: built-in defaults, then the config file (`explicit`, else the one
+/// [`discover`] finds from `cwd`), then the command-line layer. Returns the config file used, if any.
+pub fn resolve(
+    explicit: Option<&Path>,
+    cwd: &Path,
+    command_line: &Config,
+) -> Result<(Settings, Option<PathBuf>), ConfigError> {
+    let file = match explicit {
+        Some(path) => Some(path.to_owned()),
+        None => discover(cwd),
+    };
+    let mut settings = Settings::default();
+    if let Some(path) = &file {
+        settings = settings.merge(&Config::read(path)?);
+    }
+    Ok((settings.merge(command_line), file))
+}
+
+/// 1-based line and column of a byte offset.
+fn position(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+/// For serde's "unknown field `x`, expected one of `a`, `b`" message: the closest expected name.
+fn suggest_for_unknown_field(message: &str) -> Option<String> {
+    let rest = message.strip_prefix("unknown field `")?;
+    let (field, expected) = rest.split_once('`')?;
+    let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    closest(field, &known).map(str::to_owned)
+}
+
+/// The known name closest to `name` by edit distance, if it is close enough to be a typo.
+fn closest<'a>(name: &str, known: &[&'a str]) -> Option<&'a str> {
+    known
+        .iter()
+        .map(|k| (edit_distance(name, k), *k))
+        .filter(|&(d, k)| d <= 2.max(k.len() / 3))
+        .min()
+        .map(|(_, k)| k)
+}
+
+/// Levenshtein distance over chars.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (diagonal + usize::from(ca != cb))
+                .min(above + 1)
+                .min(row[j] + 1);
+            diagonal = above;
+        }
+    }
+    row[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Config, ConfigError> {
+        Config::parse(text, Path::new("meshvet.toml"))
+    }
+
+    #[test]
+    fn edit_distance_counts_single_edits() {
+        assert_eq!(edit_distance("hole", "hole"), 0);
+        assert_eq!(edit_distance("holes", "hole"), 1);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("", "abc"), 3);
+    }
+
+    #[test]
+    fn unknown_rule_names_its_line_and_the_closest_rule() {
+        let err =
+            parse("weld_tolerance = 0.0\n[rules]\nnon-manifold-edges = \"warning\"\n").unwrap_err();
+        assert_eq!(err.position, Some((3, 1)));
+        assert!(
+            err.message.contains("did you mean `non-manifold-edge`?"),
+            "{}",
+            err.message
+        );
+        assert!(err
+            .to_string()
+            .starts_with("meshvet.toml:3:1: unknown rule"));
+    }
+
+    #[test]
+    fn unknown_key_suggests_the_closest_key() {
+        let err = parse("\n\nweld_tolerence = 0.1\n").unwrap_err();
+        assert_eq!(err.position.map(|p| p.0), Some(3));
+        assert!(
+            err.message.contains("did you mean `weld_tolerance`?"),
+            "{}",
+            err.message
+        );
+        let err = parse("[limits]\nmax_triangle = 5\n").unwrap_err();
+        assert!(
+            err.message.contains("did you mean `max_triangles`?"),
+            "{}",
+            err.message
+        );
+    }
+
+    #[test]
+    fn bad_severity_is_an_error() {
+        let err = parse("[rules]\nhole = \"fatal\"\n").unwrap_err();
+        assert_eq!(err.position.map(|p| p.0), Some(2));
+    }
+
+    #[test]
+    fn layers_override_in_order() {
+        let file =
+            parse("jobs = 3\nexclude = [\"**/tmp/**\"]\n[rules]\nhole = \"error\"\n").unwrap();
+        let flags = Config {
+            jobs: Some(1),
+            ..Config::default()
+        };
+        let settings = Settings::default().merge(&file).merge(&flags);
+        assert_eq!(settings.jobs, 1);
+        assert_eq!(settings.exclude, ["**/tmp/**"]);
+        assert_eq!(settings.severities.get(Rule::Hole), Severity::Error);
+        assert_eq!(settings.severities.get(Rule::Cavity), Severity::Off);
+    }
+
+    #[test]
+    fn discovery_finds_the_nearest_file_upward() {
+        let dir = tempfile::tempdir().unwrap();
+        let deep = dir.path().join("a/b");
+        std::fs::create_dir_all(&deep).unwrap();
+        assert_eq!(discover(&deep).filter(|p| p.starts_with(dir.path())), None);
+        std::fs::write(dir.path().join("a").join(FILE_NAME), "").unwrap();
+        assert_eq!(discover(&deep), Some(dir.path().join("a").join(FILE_NAME)));
+    }
+}

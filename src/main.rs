@@ -1,1 +1,207 @@
-fn main() {}
+//! The `meshvet` process: parses the command line, resolves the config, drives the scan with a
+//! progress bar, writes the CSV, prints the summary and decides the exit code (SPEC 11, 12).
+//! Everything else lives in the library, which never prints.
+
+mod cli;
+
+use std::io::{IsTerminal, Write};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use cli::{Cli, Command};
+use meshvet::config;
+use meshvet::report::{CsvReport, Target};
+use meshvet::rules::{Severity, Status};
+use meshvet::scan::{self, Outcome};
+use meshvet::walk;
+
+/// The command was wrong (bad flag, config or path): SPEC 12.
+const USAGE: u8 = 2;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Scan(args) => match run_scan(&args) {
+            Ok(code) => code,
+            Err(message) => {
+                eprintln!("meshvet: {message}");
+                ExitCode::from(USAGE)
+            }
+        },
+    }
+}
+
+/// Panics inside the scan threads are caught and reported as `error` rows; keep their text off the
+/// terminal. Panics anywhere else are real crashes and print as usual.
+fn install_quiet_panic_hook() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let name = std::thread::current().name().map(str::to_owned);
+        if !name.is_some_and(|n| n.starts_with(scan::THREAD_NAME)) {
+            default(info);
+        }
+    }));
+}
+
+/// Tallies rows by status and keeps one line per failing mesh.
+#[derive(Default)]
+struct Summary {
+    rows: usize,
+    pass: usize,
+    warn: usize,
+    fail: usize,
+    error: usize,
+    empty: usize,
+    failures: Vec<String>,
+}
+
+impl Summary {
+    fn add(&mut self, outcome: &Outcome) {
+        let row = &outcome.row;
+        self.rows += 1;
+        let status = row.status.unwrap_or(Status::Error);
+        *match status {
+            Status::Pass => &mut self.pass,
+            Status::Warn => &mut self.warn,
+            Status::Fail => &mut self.fail,
+            Status::Error => &mut self.error,
+            Status::Empty => &mut self.empty,
+        } += 1;
+        if !status.is_failure() {
+            return;
+        }
+        let mut line = row.path.clone();
+        if !row.mesh.is_empty() {
+            line = format!("{line}#{}", row.mesh);
+        }
+        if status == Status::Error {
+            line = format!("{line}: error: {}", row.message);
+        } else {
+            const SHOWN: usize = 3;
+            let worst: Vec<String> = outcome
+                .findings
+                .iter()
+                .filter(|f| f.severity == Severity::Error)
+                .map(|f| format!("error {}: {}", f.rule, f.message))
+                .collect();
+            line = format!("{line}: {}", worst[..worst.len().min(SHOWN)].join("; "));
+            if worst.len() > SHOWN {
+                line = format!("{line} (+{} more)", worst.len() - SHOWN);
+            }
+        }
+        self.failures.push(line);
+    }
+
+    fn line(&self, seconds: f64) -> String {
+        let meshes = if self.rows == 1 { "mesh" } else { "meshes" };
+        let mut line = format!(
+            "{} {meshes}: {} pass, {} warn, {} fail, {} error",
+            self.rows, self.pass, self.warn, self.fail, self.error
+        );
+        if self.empty > 0 {
+            line = format!("{line}, {} empty", self.empty);
+        }
+        format!("{line} in {seconds:.1} s")
+    }
+}
+
+fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
+    let started = Instant::now();
+    install_quiet_panic_hook();
+    let cwd = std::env::current_dir()
+        .map_err(|e| format!("cannot tell the current folder: {e}"))?;
+    let (settings, config_file) = config::resolve(args.config.as_deref(), &cwd, &args.config_layer())
+        .map_err(|e| format!("bad config: {e}\nfix the config (see configs/default.toml for every key)"))?;
+    let filter = walk::Filter::new(&settings.include, &settings.exclude).map_err(|e| {
+        let from = config_file.map_or_else(|| "the config".to_owned(), |p| p.display().to_string());
+        format!("bad include/exclude in {from}: {e}")
+    })?;
+    for path in &args.paths {
+        if std::fs::symlink_metadata(path).is_err() {
+            return Err(format!(
+                "no such file or folder: {} - check the path",
+                path.display()
+            ));
+        }
+    }
+
+    let sources = walk::walk(&args.paths, &filter);
+    let target = args.csv_target();
+    let mut report = match &target {
+        Some(t) => Some(CsvReport::create(t).map_err(|e| cannot_write(t, &e))?),
+        None => None,
+    };
+
+    let bar = if args.quiet || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::with_draw_target(Some(sources.len() as u64), ProgressDrawTarget::stderr())
+            .with_style(
+                ProgressStyle::with_template(
+                    "{bar:30} {pos}/{len} files  {msg}  ETA {eta}",
+                )
+                .expect("the template is valid"),
+            )
+    };
+    let meshes = AtomicUsize::new(0);
+    let progress = |rows: usize| {
+        let done = meshes.fetch_add(rows, Ordering::Relaxed) + rows;
+        let seconds = started.elapsed().as_secs_f64().max(1e-3);
+        bar.set_message(format!("{:.0} meshes/s", done as f64 / seconds));
+        bar.inc(1);
+    };
+
+    let mut summary = Summary::default();
+    let written = scan::scan(&sources, &settings, &progress, |outcome| {
+        summary.add(&outcome);
+        match &mut report {
+            Some(r) => r.write(&outcome.row),
+            None => Ok(()),
+        }
+    });
+    bar.finish_and_clear();
+    let finished = written.and_then(|()| report.map_or(Ok(()), CsvReport::finish));
+    if let (Err(e), Some(t)) = (finished, &target) {
+        return Err(cannot_write(t, &e));
+    }
+
+    // The summary goes to standard output unless the CSV does.
+    let mut out: Box<dyn Write> = if target == Some(Target::Stdout) {
+        Box::new(std::io::stderr())
+    } else {
+        Box::new(std::io::stdout())
+    };
+    if sources.is_empty() && !args.quiet {
+        eprintln!("meshvet: no mesh files found (.obj .gltf .glb .stl .ply .off)");
+    }
+    let mut lines = Vec::new();
+    if !args.quiet {
+        lines.push(summary.line(started.elapsed().as_secs_f64()));
+    }
+    lines.extend(summary.failures.iter().cloned());
+    for line in lines {
+        // A closed pipe (`| head`) is not worth a panic.
+        if writeln!(out, "{line}").is_err() {
+            break;
+        }
+    }
+    Ok(if summary.fail + summary.error > 0 {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+fn cannot_write(target: &Target, e: &std::io::Error) -> String {
+    match target {
+        Target::Stdout => format!("cannot write the report to standard output: {e}"),
+        Target::File(p) => format!(
+            "cannot write the report {}: {e} - check that its folder exists and is writable",
+            p.display()
+        ),
+    }
+}

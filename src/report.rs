@@ -1,1 +1,395 @@
-//! TODO
+//! The CSV report (SPEC 9): one flat [`Row`] per mesh whose field order is the column order, and a
+//! writer that puts the file in place atomically (a temporary file in the same folder, renamed when
+//! complete) or streams to standard output.
+//!
+//! Cells: booleans `true`/`false`; a number that is undefined (genus of a non-manifold mesh, every
+//! count of a file that could not be read) is an empty cell; floats print as Rust's shortest
+//! round-trip form (`0.5`, `1`, `1e-7`). After SPEC's columns come `invalid_faces`,
+//! `mirrored_instances` and `findings` (`rule:count;rule:count`, worst first, `off` rules left out).
+
+use std::fs::File;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+
+use serde::{Serialize, Serializer};
+
+use crate::formats::Format;
+use crate::rules::{Finding, Status};
+use crate::topology::Analysis;
+
+/// The column names in order (the header the writer emits).
+pub const COLUMNS: [&str; 42] = [
+    "path",
+    "mesh",
+    "format",
+    "status",
+    "message",
+    "vertices",
+    "welded_vertices",
+    "faces",
+    "degenerate_faces",
+    "zero_area_faces",
+    "duplicate_faces",
+    "invalid_vertices",
+    "unreferenced_vertices",
+    "edges",
+    "border_edges",
+    "nonmanifold_edges",
+    "nonmanifold_vertices",
+    "inconsistent_edges",
+    "components",
+    "shells",
+    "holes",
+    "orientable",
+    "oriented",
+    "inside_out_shells",
+    "cavities",
+    "solids",
+    "euler",
+    "genus",
+    "volume",
+    "area",
+    "bbox_min_x",
+    "bbox_min_y",
+    "bbox_min_z",
+    "bbox_max_x",
+    "bbox_max_y",
+    "bbox_max_z",
+    "repaired_path",
+    "repairs",
+    "millis",
+    "invalid_faces",
+    "mirrored_instances",
+    "findings",
+];
+
+/// One line of the CSV report. Field order is column order (checked against [`COLUMNS`] by a test).
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct Row {
+    pub path: String,
+    pub mesh: String,
+    pub format: String,
+    #[serde(serialize_with = "status_cell")]
+    pub status: Option<Status>,
+    pub message: String,
+    pub vertices: Option<usize>,
+    pub welded_vertices: Option<usize>,
+    pub faces: Option<usize>,
+    pub degenerate_faces: Option<usize>,
+    pub zero_area_faces: Option<usize>,
+    pub duplicate_faces: Option<usize>,
+    pub invalid_vertices: Option<usize>,
+    pub unreferenced_vertices: Option<usize>,
+    pub edges: Option<usize>,
+    pub border_edges: Option<usize>,
+    pub nonmanifold_edges: Option<usize>,
+    pub nonmanifold_vertices: Option<usize>,
+    pub inconsistent_edges: Option<usize>,
+    pub components: Option<usize>,
+    pub shells: Option<usize>,
+    pub holes: Option<usize>,
+    pub orientable: Option<bool>,
+    pub oriented: Option<bool>,
+    pub inside_out_shells: Option<usize>,
+    pub cavities: Option<usize>,
+    pub solids: Option<usize>,
+    pub euler: Option<i64>,
+    pub genus: Option<i64>,
+    #[serde(serialize_with = "float_cell")]
+    pub volume: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub area: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub bbox_min_x: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub bbox_min_y: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub bbox_min_z: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub bbox_max_x: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub bbox_max_y: Option<f64>,
+    #[serde(serialize_with = "float_cell")]
+    pub bbox_max_z: Option<f64>,
+    pub repaired_path: String,
+    pub repairs: String,
+    #[serde(serialize_with = "float_cell")]
+    pub millis: Option<f64>,
+    pub invalid_faces: Option<usize>,
+    pub mirrored_instances: Option<u32>,
+    pub findings: String,
+}
+
+fn float_cell<S: Serializer>(value: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+    match value {
+        Some(v) => s.serialize_str(&v.to_string()),
+        None => s.serialize_str(""),
+    }
+}
+
+fn status_cell<S: Serializer>(value: &Option<Status>, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(value.map_or("", Status::name))
+}
+
+impl Row {
+    /// A row for a file that could not be read: every number empty, the message says why.
+    pub fn error(path: &str, format: Option<Format>, message: &str, millis: f64) -> Row {
+        Row {
+            path: path.to_owned(),
+            format: format.map_or_else(String::new, |f| f.name().to_owned()),
+            status: Some(Status::Error),
+            message: message.to_owned(),
+            millis: Some(millis),
+            ..Row::default()
+        }
+    }
+
+    /// A row for a mesh that was read and analysed.
+    #[allow(clippy::too_many_arguments)]
+    pub fn analysed(
+        path: &str,
+        mesh: Option<&str>,
+        format: Format,
+        status: Status,
+        analysis: &Analysis,
+        findings: &[Finding],
+        notes: &[String],
+        mirrored_instances: u32,
+        millis: f64,
+    ) -> Row {
+        let a = analysis;
+        let bbox = |i: usize, k: usize| a.bbox.map(|b| b[i][k]);
+        let message: Vec<&str> = findings
+            .iter()
+            .map(|f| f.message.as_str())
+            .chain(notes.iter().map(String::as_str))
+            .collect();
+        let defined = a.faces > 0;
+        Row {
+            path: path.to_owned(),
+            mesh: mesh.unwrap_or_default().to_owned(),
+            format: format.name().to_owned(),
+            status: Some(status),
+            message: message.join("; "),
+            vertices: Some(a.vertices),
+            welded_vertices: Some(a.welded_vertices),
+            faces: Some(a.faces),
+            degenerate_faces: Some(a.degenerate_faces),
+            zero_area_faces: Some(a.zero_area_faces),
+            duplicate_faces: Some(a.duplicate_faces),
+            invalid_vertices: Some(a.invalid_vertices),
+            unreferenced_vertices: Some(a.unreferenced_vertices),
+            edges: Some(a.edges),
+            border_edges: Some(a.border_edges),
+            nonmanifold_edges: Some(a.nonmanifold_edges),
+            nonmanifold_vertices: Some(a.nonmanifold_vertices),
+            inconsistent_edges: Some(a.inconsistent_edges),
+            components: Some(a.components.len()),
+            shells: Some(a.shells.len()),
+            holes: Some(a.holes()),
+            orientable: defined.then(|| a.orientable()),
+            oriented: defined.then(|| a.oriented()),
+            inside_out_shells: Some(a.inside_out_shells()),
+            cavities: Some(a.cavities()),
+            solids: Some(a.solids()),
+            euler: Some(a.euler),
+            genus: a.genus(),
+            volume: a.volume(),
+            area: Some(a.area),
+            bbox_min_x: bbox(0, 0),
+            bbox_min_y: bbox(0, 1),
+            bbox_min_z: bbox(0, 2),
+            bbox_max_x: bbox(1, 0),
+            bbox_max_y: bbox(1, 1),
+            bbox_max_z: bbox(1, 2),
+            repaired_path: String::new(),
+            repairs: String::new(),
+            millis: Some(millis),
+            invalid_faces: Some(a.invalid_faces),
+            mirrored_instances: Some(mirrored_instances),
+            findings: findings_cell(findings),
+        }
+    }
+}
+
+/// `rule:count;rule:count` in the findings' order.
+pub fn findings_cell(findings: &[Finding]) -> String {
+    findings
+        .iter()
+        .map(|f| format!("{}:{}", f.rule, f.count))
+        .collect::<Vec<_>>()
+        .join(";")
+}
+
+/// Where the CSV goes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Target {
+    Stdout,
+    File(PathBuf),
+}
+
+/// A CSV report being written. [`CsvReport::finish`] puts a file target in place; dropping the
+/// report unfinished removes its temporary file and leaves any earlier report untouched.
+pub struct CsvReport {
+    writer: Option<csv::Writer<Box<dyn Write>>>,
+    /// `(temporary, final)` for a file target.
+    rename: Option<(PathBuf, PathBuf)>,
+}
+
+impl CsvReport {
+    /// Starts a report and writes the header.
+    pub fn create(target: &Target) -> io::Result<CsvReport> {
+        let (sink, rename): (Box<dyn Write>, _) = match target {
+            Target::Stdout => (Box::new(io::BufWriter::new(io::stdout())), None),
+            Target::File(path) => {
+                let temporary = temporary_name(path);
+                let file = File::create(&temporary)?;
+                (
+                    Box::new(io::BufWriter::new(file)),
+                    Some((temporary, path.clone())),
+                )
+            }
+        };
+        let mut report = CsvReport {
+            writer: Some(
+                csv::WriterBuilder::new()
+                    .has_headers(false)
+                    .from_writer(sink),
+            ),
+            rename,
+        };
+        report.writer()?.write_record(COLUMNS)?;
+        Ok(report)
+    }
+
+    fn writer(&mut self) -> io::Result<&mut csv::Writer<Box<dyn Write>>> {
+        self.writer
+            .as_mut()
+            .ok_or_else(|| io::Error::other("the report is already finished"))
+    }
+
+    pub fn write(&mut self, row: &Row) -> io::Result<()> {
+        self.writer()?.serialize(row).map_err(io::Error::other)
+    }
+
+    /// Flushes the rows and, for a file, renames the temporary file over the target.
+    pub fn finish(mut self) -> io::Result<()> {
+        let writer = self.writer.take().expect("finish is called once");
+        let mut sink = writer.into_inner().map_err(|e| e.into_error())?;
+        sink.flush()?;
+        drop(sink);
+        if let Some((temporary, path)) = self.rename.take() {
+            if let Err(e) = std::fs::rename(&temporary, &path) {
+                let _ = std::fs::remove_file(&temporary);
+                return Err(e);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for CsvReport {
+    fn drop(&mut self) {
+        if let Some((temporary, _)) = self.rename.take() {
+            self.writer = None;
+            let _ = std::fs::remove_file(temporary);
+        }
+    }
+}
+
+/// `dir/.name.PID.tmp` beside `path`, so the final rename stays on one file system.
+fn temporary_name(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or_else(|| "report.csv".into(), |n| n.to_string_lossy());
+    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rules::{Rule, Severity};
+    use crate::topology::Component;
+
+    fn csv_of(rows: &[Row]) -> String {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        let mut report = CsvReport::create(&Target::File(path.clone())).unwrap();
+        for row in rows {
+            report.write(row).unwrap();
+        }
+        report.finish().unwrap();
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(names.len(), 1, "the temporary file is gone");
+        std::fs::read_to_string(path).unwrap()
+    }
+
+    #[test]
+    fn row_fields_are_the_columns_in_order() {
+        let text = {
+            let mut w = csv::Writer::from_writer(Vec::new());
+            w.serialize(Row::default()).unwrap();
+            String::from_utf8(w.into_inner().unwrap()).unwrap()
+        };
+        assert_eq!(text.lines().next().unwrap(), COLUMNS.join(","));
+    }
+
+    #[test]
+    fn cells_follow_the_spec() {
+        let analysis = Analysis {
+            vertices: 4,
+            faces: 4,
+            area: 2.5,
+            bbox: Some([[0.0, -0.5, 0.0], [1.0, 1e-7, 3.0]]),
+            components: vec![Component {
+                holes: 2,
+                orientable: true,
+                oriented: true,
+                ..Component::default()
+            }],
+            ..Analysis::default()
+        };
+        let findings = [Finding {
+            rule: Rule::Hole,
+            severity: Severity::Warning,
+            count: 2,
+            message: "2 holes".into(),
+        }];
+        let row = Row::analysed(
+            "a/b.obj",
+            None,
+            Format::Obj,
+            Status::Warn,
+            &analysis,
+            &findings,
+            &["missing b.mtl".into()],
+            0,
+            1.5,
+        );
+        let text = csv_of(&[
+            row,
+            Row::error("c.stl", Some(Format::Stl), "truncated", 0.25),
+        ]);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], COLUMNS.join(","));
+        assert_eq!(
+            lines[1],
+            "a/b.obj,,obj,warn,2 holes; missing b.mtl,4,0,4,0,0,0,0,0,0,0,0,0,0,1,0,2,true,true,0,0,0,0,,,2.5,0,-0.5,0,1,0.0000001,3,,,1.5,0,0,hole:2"
+        );
+        assert_eq!(
+            lines[2],
+            format!("c.stl,,stl,error,truncated{}0.25,,,", ",".repeat(34))
+        );
+    }
+
+    #[test]
+    fn an_unfinished_report_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        std::fs::write(&path, "old").unwrap();
+        let report = CsvReport::create(&Target::File(path.clone())).unwrap();
+        drop(report);
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

@@ -1,1 +1,165 @@
-//! TODO
+//! The per-file pipeline, run on many files in parallel: read -> analyse -> rules -> report rows.
+//!
+//! One file is the unit of parallel work. Files go through a rayon pool of `settings.jobs` threads in
+//! chunks, so however large the tree only one chunk's rows are in memory; each chunk's rows are handed
+//! to the caller in order before the next chunk starts. Rows come out sorted by path then mesh (the
+//! walk sorts files; rows of one file are sorted by mesh), so the report is the same with any number of
+//! threads except for `millis`.
+//!
+//! Every file gets at least one row: a read error gives one `error` row, a file without triangles an
+//! `empty` row, and a panic in a reader or in the analysis is caught and becomes an `error` row. The
+//! scan never prints; progress is reported through a callback.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::config::Settings;
+use crate::formats::{self, Format, ReadContext};
+use crate::report::Row;
+use crate::rules::{self, Finding, MeshFacts, Status};
+use crate::topology::analyse;
+use crate::walk::Source;
+
+/// Files per chunk for each worker thread.
+const CHUNK_PER_THREAD: usize = 64;
+
+/// Prefix of the scan threads' names: a panic hook can recognise panics that will be caught.
+pub const THREAD_NAME: &str = "meshvet-scan";
+
+/// One report row and the findings behind it (for the summary).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    pub row: Row,
+    pub findings: Vec<Finding>,
+}
+
+/// Scans `sources` on a pool of `settings.jobs` threads (0: one per core). `progress` is called from
+/// the worker threads once per file with the number of rows it gave; `emit` receives every outcome, in
+/// report order. Stops at the first error `emit` returns.
+pub fn scan<E>(
+    sources: &[Source],
+    settings: &Settings,
+    progress: &(dyn Fn(usize) + Sync),
+    mut emit: impl FnMut(Outcome) -> Result<(), E>,
+) -> Result<(), E>
+where
+    E: From<std::io::Error>,
+{
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.jobs)
+        .thread_name(|i| format!("{THREAD_NAME}-{i}"))
+        .build()
+        .map_err(|e| std::io::Error::other(format!("cannot start the worker threads: {e}")))?;
+    let chunk = CHUNK_PER_THREAD * pool.current_num_threads();
+    for files in sources.chunks(chunk) {
+        let outcomes: Vec<Vec<Outcome>> = pool.install(|| {
+            files
+                .par_iter()
+                .map(|source| {
+                    let outcomes = scan_file(source, settings);
+                    progress(outcomes.len());
+                    outcomes
+                })
+                .collect()
+        });
+        for outcome in outcomes.into_iter().flatten() {
+            emit(outcome)?;
+        }
+    }
+    Ok(())
+}
+
+/// Reads and judges one file: its rows, sorted by mesh. Never panics (a panic inside is caught).
+pub fn scan_file(source: &Source, settings: &Settings) -> Vec<Outcome> {
+    let start = Instant::now();
+    let error = |message: &str, start: Instant| {
+        vec![Outcome {
+            row: Row::error(&source.display, source.format, message, millis(start)),
+            findings: Vec::new(),
+        }]
+    };
+    if let Some(message) = &source.error {
+        return error(message, start);
+    }
+    let Some(format) = source.format else {
+        return error(
+            "not a mesh file: meshvet reads .obj .gltf .glb .stl .ply .off - rename it if it is one",
+            start,
+        );
+    };
+    match catch_unwind(AssertUnwindSafe(|| judge(source, format, settings))) {
+        Ok(Ok(mut outcomes)) => {
+            outcomes.sort_by(|a, b| a.row.mesh.cmp(&b.row.mesh));
+            outcomes
+        }
+        Ok(Err(message)) => error(&message, start),
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".to_owned());
+            error(
+                &format!("internal error while reading: {what} - please report this file"),
+                start,
+            )
+        }
+    }
+}
+
+fn judge(source: &Source, format: Format, settings: &Settings) -> Result<Vec<Outcome>, String> {
+    let start = Instant::now();
+    let context = ReadContext {
+        root: source.root.clone(),
+        limits: settings.limits.clone(),
+    };
+    let meshes = formats::read(&source.path, format, &context).map_err(|e| e.to_string())?;
+    let read_millis = millis(start);
+    if meshes.is_empty() {
+        let mut row = Row::error(&source.display, Some(format), "", read_millis);
+        row.status = Some(Status::Empty);
+        row.message = "the file holds no meshes".to_owned();
+        return Ok(vec![Outcome {
+            row,
+            findings: Vec::new(),
+        }]);
+    }
+    let options = settings.options();
+    let outcomes = meshes
+        .iter()
+        .map(|mesh| {
+            let start = Instant::now();
+            let analysis = analyse(mesh, &options);
+            let (status, findings) = if mesh.triangles.is_empty() {
+                (Status::Empty, Vec::new())
+            } else {
+                let findings = rules::check(&analysis, &MeshFacts::of(mesh), &settings.severities);
+                (Status::of(&findings), findings)
+            };
+            let mut notes = mesh.notes.clone();
+            if status == Status::Empty {
+                notes.insert(0, "no triangles".to_owned());
+            }
+            let row = Row::analysed(
+                &source.display,
+                mesh.name.as_deref(),
+                format,
+                status,
+                &analysis,
+                &findings,
+                &notes,
+                mesh.mirrored_instances,
+                read_millis + millis(start),
+            );
+            Outcome { row, findings }
+        })
+        .collect();
+    Ok(outcomes)
+}
+
+/// Milliseconds since `start`, to the microsecond.
+fn millis(start: Instant) -> f64 {
+    (start.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}
