@@ -326,6 +326,76 @@ mod tests {
         assert_eq!(settings.severities.get(Rule::Cavity), Severity::Off);
     }
 
+    fn shipped(name: &str) -> Settings {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("configs")
+            .join(name);
+        let config = Config::read(&path).unwrap_or_else(|e| panic!("{e}"));
+        Settings::default().merge(&config)
+    }
+
+    #[test]
+    fn default_toml_states_every_key_with_its_built_in_default() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/default.toml");
+        let config = Config::read(&path).unwrap_or_else(|e| panic!("{e}"));
+        // Start from settings that differ from the defaults everywhere: only a file that states
+        // every key, with the default value, turns them back into the defaults.
+        let mut different = Settings {
+            weld_tolerance: 1.0,
+            include: vec!["x".into()],
+            exclude: vec!["y".into()],
+            limits: Limits {
+                max_file_bytes: 1,
+                max_triangles: 1,
+            },
+            jobs: 7,
+            ..Settings::default()
+        };
+        for rule in Rule::ALL {
+            let other = match rule.default_severity() {
+                Severity::Off => Severity::Error,
+                _ => Severity::Off,
+            };
+            different.severities.set(rule, other);
+        }
+        assert_eq!(different.merge(&config), Settings::default());
+    }
+
+    #[test]
+    fn print_and_realtime_configs_say_what_they_promise() {
+        let print = shipped("print.toml");
+        for rule in [
+            Rule::Hole,
+            Rule::NonManifoldEdge,
+            Rule::NonManifoldVertex,
+            Rule::InconsistentWinding,
+            Rule::NonOrientable,
+            Rule::InsideOutShell,
+        ] {
+            assert_eq!(print.severities.get(rule), Severity::Error, "{rule}");
+        }
+        assert_eq!(print.severities.get(Rule::Cavity), Severity::Warning);
+
+        let realtime = shipped("realtime.toml");
+        assert_eq!(realtime.severities.get(Rule::Hole), Severity::Off);
+        assert_eq!(
+            realtime.severities.get(Rule::NonManifoldEdge),
+            Severity::Warning
+        );
+        assert_eq!(
+            realtime.severities.get(Rule::NonManifoldVertex),
+            Severity::Warning
+        );
+        assert_eq!(
+            realtime.severities.get(Rule::DuplicateFace),
+            Severity::Warning
+        );
+        assert_eq!(
+            realtime.severities.get(Rule::InsideOutShell),
+            Severity::Error
+        );
+    }
+
     #[test]
     fn discovery_finds_the_nearest_file_upward() {
         let dir = tempfile::tempdir().unwrap();
