@@ -6,6 +6,8 @@
 use std::borrow::Cow;
 
 use gltf::json;
+
+use super::container::Model;
 use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
 use gltf::json::validation::Checked;
 
@@ -13,7 +15,7 @@ use super::super::{Limits, ReadError};
 
 /// The loaded buffers of an asset, by index (`None`: not needed by any mesh, so never loaded).
 pub struct Data<'a> {
-    pub root: &'a json::Root,
+    pub root: &'a Model,
     pub buffers: Vec<Option<Cow<'a, [u8]>>>,
     pub limits: &'a Limits,
 }
@@ -61,11 +63,7 @@ fn type_name(t: Type) -> &'static str {
 }
 
 /// The accessor at `index`, or an error naming who referred to it.
-pub fn get<'r>(
-    root: &'r json::Root,
-    index: usize,
-    what: &str,
-) -> Result<&'r json::Accessor, ReadError> {
+pub fn get<'r>(root: &'r Model, index: usize, what: &str) -> Result<&'r json::Accessor, ReadError> {
     root.accessors.get(index).ok_or_else(|| {
         err(format!(
             "{what} refers to accessor {index}, but the file has {} accessors",

@@ -147,9 +147,35 @@ fn is_harmless(extension: &str) -> bool {
         )
 }
 
-/// Checks the version and required extensions, then deserializes the JSON into the crate's model
+/// The parts of a glTF document that geometry depends on, in the gltf crate's JSON types. Other
+/// members (materials, textures, animations, ...) are skipped unread, so a broken texture
+/// reference does not stop a topology check. A scene without `nodes` (allowed by the spec, refused
+/// by the crate's `Scene`) is an empty scene.
+#[derive(Deserialize)]
+pub struct Model {
+    #[serde(default)]
+    pub accessors: Vec<json::Accessor>,
+    #[serde(default)]
+    pub buffers: Vec<json::Buffer>,
+    #[serde(default, rename = "bufferViews")]
+    pub buffer_views: Vec<json::buffer::View>,
+    #[serde(default)]
+    pub meshes: Vec<json::Mesh>,
+    #[serde(default)]
+    pub nodes: Vec<json::Node>,
+    #[serde(default)]
+    pub scenes: Vec<Scene>,
+}
+
+#[derive(Deserialize)]
+pub struct Scene {
+    #[serde(default)]
+    pub nodes: Vec<json::Index<json::Node>>,
+}
+
+/// Checks the version and required extensions, then deserializes the JSON into [`Model`]
 /// (deserialization only: the crate's validation pass is where it panics, so we never run it).
-pub fn parse_root(json: &[u8]) -> Result<json::Root, ReadError> {
+pub fn parse_model(json: &[u8]) -> Result<Model, ReadError> {
     let invalid = |e: json::Error| ReadError::new(format!("invalid glTF JSON: {e}"));
     let preamble: Preamble = json::deserialize::from_slice(json).map_err(invalid)?;
     let version = preamble.asset.and_then(|a| a.version);

@@ -2,10 +2,10 @@
 //! the mesh's local space, counted once however many nodes instance it (SPEC section 2).
 //!
 //! The gltf crate panics on several malformed inputs, all in its validation pass and its `Reader`
-//! (CRATES.md 5.1-5.3). So this reader uses only the crate's JSON model: it deserializes
-//! `gltf::json::Root` itself (after turning away glTF 1.0 and extensions it cannot decode),
-//! resolves buffers itself (`buffers`), and reads accessors from bytes it has checked
-//! (`accessor`). Every index, type, stride and byte range is checked before use; a panic that
+//! (CRATES.md 5.1-5.3). So this reader uses only the crate's JSON types: it deserializes the
+//! members geometry needs itself (`container::Model`, after turning away glTF 1.0 and extensions
+//! it cannot decode), never builds a `gltf::Document`, resolves buffers itself (`buffers`), and
+//! reads accessors from bytes it has checked (`accessor`). Every index, type, stride and byte range is checked before use; a panic that
 //! slips through anyway is caught and reported as a read error for this file.
 
 mod accessor;
@@ -42,7 +42,7 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
 fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
     let bytes = std::fs::read(path)?;
     let container = container::split(&bytes)?;
-    let root = container::parse_root(container.json)?;
+    let root = container::parse_model(container.json)?;
     if root.meshes.is_empty() {
         return Ok(Vec::new());
     }

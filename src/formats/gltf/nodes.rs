@@ -6,11 +6,13 @@
 use glam::{DMat4, DQuat, DVec3};
 use gltf::json;
 
+use super::container::Model;
+
 use super::super::ReadError;
 
 /// For each mesh, how many nodes instance it with a mirroring transform. Roots are the nodes of
 /// every scene; a file with no scenes uses every node that is nobody's child.
-pub fn mirrored_instances(root: &json::Root) -> Result<Vec<u32>, ReadError> {
+pub fn mirrored_instances(root: &Model) -> Result<Vec<u32>, ReadError> {
     let nodes = &root.nodes;
     let check = |index: usize, who: &dyn Fn() -> String| {
         if index < nodes.len() {
