@@ -1,1 +1,119 @@
-fn main() {}
+//! Topology engine benchmark (issue 2): a closed grid torus of ~1M and ~5M triangles with shuffled
+//! face order, single-threaded. Prints triangles/s for welding, the O-table build and the full
+//! analysis, and the peak heap the analysis allocates beyond the input mesh, per triangle.
+//!
+//!     cargo bench --bench engine            # 1M and 5M
+//!     cargo bench --bench engine -- 1       # 1M only
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+use std::time::Instant;
+
+use meshvet::{analyse, weld::weld, CornerTable, Mesh, Options};
+
+#[path = "../tests/shapes/mod.rs"]
+#[allow(dead_code)]
+mod shapes;
+
+/// Counts live heap bytes and their peak.
+struct Counting;
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc(layout) };
+        if !p.is_null() {
+            let live = LIVE.fetch_add(layout.size(), Relaxed) + layout.size();
+            PEAK.fetch_max(live, Relaxed);
+        }
+        p
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) };
+        LIVE.fetch_sub(layout.size(), Relaxed);
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// Best of `runs` wall times, in seconds.
+fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut out = None;
+    for _ in 0..runs {
+        let start = Instant::now();
+        let r = f();
+        best = best.min(start.elapsed().as_secs_f64());
+        out = Some(r);
+    }
+    (best, out.expect("at least one run"))
+}
+
+fn bench(label: &str, mesh: &Mesh) {
+    let tris = mesh.triangles.len() as f64;
+    let mrate = |s: f64| tris / s / 1e6;
+
+    let (t_weld, welded) = best(3, || weld(&mesh.positions, 0.0));
+    let table_input: Vec<[u32; 3]> = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| welded.map[i as usize]))
+        .collect();
+    let (t_table, _) = best(3, || {
+        CornerTable::build(&table_input, welded.positions.len())
+    });
+    drop(table_input);
+
+    let options = Options::default();
+    let base = LIVE.load(Relaxed);
+    PEAK.store(base, Relaxed);
+    let (t_all, analysis) = best(3, || analyse(mesh, &options));
+    let extra = PEAK.load(Relaxed) - base;
+
+    assert_eq!(analysis.genus(), Some(1), "a torus has genus 1");
+    assert_eq!(analysis.border_edges, 0);
+    println!(
+        "{label}: {} triangles, {} vertices",
+        mesh.triangles.len(),
+        mesh.positions.len()
+    );
+    println!(
+        "  weld          {:7.1} ms  {:6.1} M triangles/s",
+        t_weld * 1e3,
+        mrate(t_weld)
+    );
+    println!(
+        "  O table       {:7.1} ms  {:6.1} M triangles/s",
+        t_table * 1e3,
+        mrate(t_table)
+    );
+    println!(
+        "  full analysis {:7.1} ms  {:6.1} M triangles/s",
+        t_all * 1e3,
+        mrate(t_all)
+    );
+    println!(
+        "  peak heap beyond the input: {:.1} bytes/triangle",
+        extra as f64 / tris
+    );
+}
+
+fn main() {
+    let only: Option<usize> = std::env::args().skip(1).find_map(|a| a.parse().ok());
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build_global()
+        .ok();
+    for (millions, n, m) in [(1, 1000, 500), (5, 2500, 1000)] {
+        if only.is_some_and(|o| o != millions) {
+            continue;
+        }
+        let mesh = shapes::torus(n, m, Some(0x5eed));
+        bench(&format!("torus {millions}M, shuffled faces"), &mesh);
+        drop(mesh);
+        let mesh = shapes::torus(n, m, None);
+        bench(&format!("torus {millions}M, faces in grid order"), &mesh);
+    }
+}

@@ -18,7 +18,8 @@
 //!   a made-up opposite; the faces of such an edge are listed by [`CornerTable::nonmanifold_edges`].
 //!
 //! A manifold edge is paired whatever the windings of its two faces: `O` records adjacency, and
-//! [`CornerTable::is_consistent`] says whether the pair traverses the edge in opposite directions.
+//! [`CornerTable::is_consistent`] says whether the pair traverses the edge in opposite directions
+//! (a bit per corner, found during the build, so walks never re-read `V` to decide it).
 //!
 //! `O` is built in linear time: a counting sort of corners by the lower vertex of their opposite edge,
 //! then a sort of each (small) bucket by the higher vertex. Runs of equal edges are the edges; their
@@ -30,11 +31,18 @@ pub const NON_MANIFOLD: u32 = u32::MAX;
 /// The largest number of triangles a table holds (corners and the sentinel must fit in `u32`).
 pub const MAX_TRIANGLES: usize = (u32::MAX as usize - 2) / 3;
 
+/// The largest number of vertices a table is built over (a vertex, a direction bit and a corner share
+/// one `u64` sort key).
+pub const MAX_VERTICES: usize = 1 << 31;
+
 /// `V` and `O` for a set of triangles over welded vertices.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CornerTable {
-    v: Vec<u32>,
+    /// `V`, one `[u32; 3]` per triangle: `V[c] = v[c / 3][c % 3]`.
+    v: Vec<[u32; 3]>,
     o: Vec<u32>,
+    /// Bit `c` set: the manifold edge opposite `c` is traversed in the same direction by both faces.
+    same_direction: Vec<u64>,
     vertex_count: usize,
     edge_count: usize,
     border_count: usize,
@@ -49,17 +57,25 @@ impl CornerTable {
     /// Each triangle must have three distinct vertices below `vertex_count` (the analysis leaves
     /// degenerate faces out before building), and there must be at most [`MAX_TRIANGLES`].
     pub fn build(triangles: &[[u32; 3]], vertex_count: usize) -> CornerTable {
+        CornerTable::from_triangles(triangles.to_vec(), vertex_count)
+    }
+
+    /// [`CornerTable::build`], keeping the triangle list as `V` instead of copying it.
+    pub fn from_triangles(triangles: Vec<[u32; 3]>, vertex_count: usize) -> CornerTable {
         assert!(
             triangles.len() <= MAX_TRIANGLES,
             "{} triangles exceed the corner table's limit of {MAX_TRIANGLES}",
             triangles.len()
         );
-        let v: Vec<u32> = triangles.iter().flatten().copied().collect();
-        let corners = v.len();
+        assert!(
+            vertex_count <= MAX_VERTICES,
+            "{vertex_count} vertices exceed the corner table's limit of {MAX_VERTICES}"
+        );
+        let corners = 3 * triangles.len();
 
         // Counting sort of corners by the lower vertex of their opposite edge.
         let mut start = vec![0u32; vertex_count + 1];
-        for t in triangles {
+        for t in &triangles {
             for k in 0..3 {
                 let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
                 start[a.min(b) as usize + 1] += 1;
@@ -68,23 +84,23 @@ impl CornerTable {
         for i in 0..vertex_count {
             start[i + 1] += start[i];
         }
-        // Each slot holds (higher vertex << 32 | corner), so sorting a bucket sorts by edge, then corner.
+        // Each slot holds `higher vertex << 33 | rising << 32 | corner`: sorting a bucket groups the
+        // corners by edge; `rising` says the corner's face runs the edge from its lower vertex up.
         let mut keys = vec![0u64; corners];
         let mut fill = start.clone();
-        for (c, t) in triangles
-            .iter()
-            .enumerate()
-            .flat_map(|(i, t)| (0..3).map(move |k| (3 * i + k, t)))
-        {
-            let k = c % 3;
-            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-            let slot = &mut fill[a.min(b) as usize];
-            keys[*slot as usize] = (u64::from(a.max(b)) << 32) | c as u64;
-            *slot += 1;
+        for (i, t) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                let slot = &mut fill[a.min(b) as usize];
+                let rising = u64::from(a < b) << 32;
+                keys[*slot as usize] = (u64::from(a.max(b)) << 33) | rising | (3 * i + k) as u64;
+                *slot += 1;
+            }
         }
         drop(fill);
 
         let mut o = vec![0u32; corners];
+        let mut same_direction = vec![0u64; corners.div_ceil(64)];
         let mut edge_count = 0;
         let mut border_count = 0;
         let mut nm_corners = Vec::new();
@@ -96,9 +112,9 @@ impl CornerTable {
             }
             let mut i = 0;
             while i < bucket.len() {
-                let hi = bucket[i] >> 32;
+                let hi = bucket[i] >> 33;
                 let mut j = i + 1;
-                while j < bucket.len() && bucket[j] >> 32 == hi {
+                while j < bucket.len() && bucket[j] >> 33 == hi {
                     j += 1;
                 }
                 let corner = |k: usize| bucket[k] as u32;
@@ -108,14 +124,22 @@ impl CornerTable {
                         border_count += 1;
                     }
                     2 => {
-                        o[corner(i) as usize] = corner(i + 1);
-                        o[corner(i + 1) as usize] = corner(i);
+                        let (a, b) = (corner(i), corner(i + 1));
+                        o[a as usize] = b;
+                        o[b as usize] = a;
+                        if (bucket[i] ^ bucket[i + 1]) & (1 << 32) == 0 {
+                            for c in [a, b] {
+                                same_direction[c as usize / 64] |= 1 << (c % 64);
+                            }
+                        }
                     }
                     _ => {
                         for k in i..j {
                             o[corner(k) as usize] = NON_MANIFOLD;
                             nm_corners.push(corner(k));
                         }
+                        let first = nm_corners.len() - (j - i);
+                        nm_corners[first..].sort_unstable();
                         nm_offsets.push(nm_corners.len() as u32);
                     }
                 }
@@ -124,8 +148,9 @@ impl CornerTable {
             }
         }
         CornerTable {
-            v,
+            v: triangles,
             o,
+            same_direction,
             vertex_count,
             edge_count,
             border_count,
@@ -137,13 +162,13 @@ impl CornerTable {
     /// Number of triangles.
     #[inline]
     pub fn triangle_count(&self) -> usize {
-        self.v.len() / 3
+        self.v.len()
     }
 
     /// Number of corners (`3 x triangles`).
     #[inline]
     pub fn corner_count(&self) -> usize {
-        self.v.len()
+        3 * self.v.len()
     }
 
     /// Number of vertices the table was built over (some may be used by no triangle).
@@ -169,8 +194,8 @@ impl CornerTable {
             .map(|w| &self.nm_corners[w[0] as usize..w[1] as usize])
     }
 
-    /// The `V` array.
-    pub fn vertices(&self) -> &[u32] {
+    /// The `V` array, as one `[u32; 3]` per triangle.
+    pub fn triangles(&self) -> &[[u32; 3]] {
         &self.v
     }
 
@@ -208,7 +233,7 @@ impl CornerTable {
     /// Vertex of corner `c`.
     #[inline]
     pub fn v(&self, c: u32) -> u32 {
-        self.v[c as usize]
+        self.v[c as usize / 3][c as usize % 3]
     }
 
     /// Raw `O[c]`: the opposite corner, `c` itself on a border, or [`NON_MANIFOLD`].
@@ -250,12 +275,15 @@ impl CornerTable {
         (x != NON_MANIFOLD).then_some(x)
     }
 
-    /// Swing `p(l(c))`: the next corner around `v(c)` on an oriented manifold mesh; `c` itself when the
-    /// edge `v(c)-v(n(c))` is a border (so repeated swings walk a hole's border); `None` across a
-    /// non-manifold edge.
+    /// Swing `p(r(c))`: the next corner around `v(c)` on an oriented manifold mesh. When the edge
+    /// `v(c)-v(p(c))` is a border it is `n(c)`, the next vertex along the border, so repeated swings
+    /// walk around a hole (seed 003). `None` across a non-manifold edge.
+    ///
+    /// (Seed 003's text defines `l(c) = o(p(c))` and `s(c) = p(l(c))`, its code `l(c) = o(n(c))`;
+    /// with SPEC's `l = o(n)` and `r = o(p)` the swing that turns around `v(c)` is `p(r(c))`.)
     #[inline]
     pub fn s(&self, c: u32) -> Option<u32> {
-        self.l(c).map(Self::p)
+        self.r(c).map(Self::p)
     }
 
     /// Whether the manifold edge opposite `c` is traversed in opposite directions by its two faces
@@ -263,10 +291,7 @@ impl CornerTable {
     /// manifold edges and give `true`.
     #[inline]
     pub fn is_consistent(&self, c: u32) -> bool {
-        match self.opposite(c) {
-            Some(b) => self.v(Self::n(c)) == self.v(Self::p(b)),
-            None => true,
-        }
+        self.same_direction[c as usize / 64] & (1 << (c % 64)) == 0
     }
 }
 
@@ -304,7 +329,11 @@ mod tests {
         assert_eq!(t.border_edge_count(), 3);
         for c in 0..3 {
             assert!(t.is_border(c));
-            assert_eq!(t.s(c), Some(c), "swing on a border stays put");
+            assert_eq!(
+                t.s(c),
+                Some(CornerTable::n(c)),
+                "a swing on a border steps along it"
+            );
         }
     }
 
