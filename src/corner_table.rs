@@ -194,6 +194,11 @@ impl CornerTable {
             .map(|w| &self.nm_corners[w[0] as usize..w[1] as usize])
     }
 
+    /// The `V` array: the vertex of every corner.
+    pub fn vertices(&self) -> &[u32] {
+        self.v.as_flattened()
+    }
+
     /// The `V` array, as one `[u32; 3]` per triangle.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.v
