@@ -27,7 +27,12 @@ use accessor::Data;
 
 /// Reads every mesh of a `.gltf` or `.glb` file (either is recognised by its content).
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    catch_unwind(AssertUnwindSafe(|| read_unguarded(path, cx))).unwrap_or_else(|panic| {
+    guard(|| read_unguarded(path, cx))
+}
+
+/// Runs `f`, turning a panic (a check this reader lacks) into a read error for this file.
+fn guard<T>(f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
+    catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|panic| {
         let detail = panic
             .downcast_ref::<&str>()
             .map(|s| s.to_string())
@@ -294,4 +299,19 @@ fn over_limit(what: &str, unit: &str, count: u64, limit: u64) -> ReadError {
     ReadError::new(format!(
         "{what} has {count} {unit}, over the limit of {limit}: raise limits.max_triangles in the config to read it"
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_becomes_a_read_error() {
+        let err = guard::<()>(|| panic!("boom {}", 7)).unwrap_err();
+        assert!(
+            err.0.contains("crashed") && err.0.contains("boom 7"),
+            "{err}"
+        );
+        assert_eq!(guard(|| Ok(3)), Ok(3));
+    }
 }
