@@ -9,7 +9,11 @@ use meshvet::config::Config;
 use meshvet::report::Target;
 
 #[derive(Debug, Parser)]
-#[command(name = "meshvet", version, about = "Vets 3D mesh files in bulk: topology checks and a CSV report")]
+#[command(
+    name = "meshvet",
+    version,
+    about = "Vets 3D mesh files in bulk: topology checks and a CSV report"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,

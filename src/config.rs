@@ -145,7 +145,10 @@ impl Config {
             message,
         };
         let config: Config = toml::from_str(text).map_err(|e| {
-            let message = e.message().trim_end().to_owned();
+            let message = e
+                .message()
+                .trim_end()
+                .replace("unknown field", "unknown key");
             let message = match suggest_for_unknown_field(&message) {
                 Some(known) => format!("{message}; did you mean `{known}`?"),
                 None => message,
@@ -221,9 +224,9 @@ fn position(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// For serde's "unknown field `x`, expected one of `a`, `b`" message: the closest expected name.
+/// For serde's "unknown field `x`, expected one of `a`, `b`" message (with "key" for "field"): the closest expected name.
 fn suggest_for_unknown_field(message: &str) -> Option<String> {
-    let rest = message.strip_prefix("unknown field `")?;
+    let rest = message.strip_prefix("unknown key `")?;
     let (field, expected) = rest.split_once('`')?;
     let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
     closest(field, &known).map(str::to_owned)

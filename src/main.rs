@@ -112,10 +112,12 @@ impl Summary {
 fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     let started = Instant::now();
     install_quiet_panic_hook();
-    let cwd = std::env::current_dir()
-        .map_err(|e| format!("cannot tell the current folder: {e}"))?;
-    let (settings, config_file) = config::resolve(args.config.as_deref(), &cwd, &args.config_layer())
-        .map_err(|e| format!("bad config: {e}\nfix the config (see configs/default.toml for every key)"))?;
+    let cwd =
+        std::env::current_dir().map_err(|e| format!("cannot tell the current folder: {e}"))?;
+    let (settings, config_file) =
+        config::resolve(args.config.as_deref(), &cwd, &args.config_layer()).map_err(|e| {
+            format!("bad config: {e}\nfix the config: every key and rule is listed in meshvet's configs/default.toml")
+        })?;
     let filter = walk::Filter::new(&settings.include, &settings.exclude).map_err(|e| {
         let from = config_file.map_or_else(|| "the config".to_owned(), |p| p.display().to_string());
         format!("bad include/exclude in {from}: {e}")
@@ -141,10 +143,8 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     } else {
         ProgressBar::with_draw_target(Some(sources.len() as u64), ProgressDrawTarget::stderr())
             .with_style(
-                ProgressStyle::with_template(
-                    "{bar:30} {pos}/{len} files  {msg}  ETA {eta}",
-                )
-                .expect("the template is valid"),
+                ProgressStyle::with_template("{bar:30} {pos}/{len} files  {msg}  ETA {eta}")
+                    .expect("the template is valid"),
             )
     };
     let meshes = AtomicUsize::new(0);

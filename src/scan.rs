@@ -89,24 +89,28 @@ pub fn scan_file(source: &Source, settings: &Settings) -> Vec<Outcome> {
             start,
         );
     };
-    match catch_unwind(AssertUnwindSafe(|| judge(source, format, settings))) {
+    match caught(|| judge(source, format, settings)) {
         Ok(Ok(mut outcomes)) => {
             outcomes.sort_by(|a, b| a.row.mesh.cmp(&b.row.mesh));
             outcomes
         }
         Ok(Err(message)) => error(&message, start),
-        Err(panic) => {
-            let what = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic".to_owned());
-            error(
-                &format!("internal error while reading: {what} - please report this file"),
-                start,
-            )
-        }
+        Err(panic) => error(
+            &format!("internal error while reading: {panic} - please report this file"),
+            start,
+        ),
     }
+}
+
+/// Runs `work`, turning a panic into its message.
+fn caught<T>(work: impl FnOnce() -> T) -> Result<T, String> {
+    catch_unwind(AssertUnwindSafe(work)).map_err(|panic| {
+        panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic without a message".to_owned())
+    })
 }
 
 fn judge(source: &Source, format: Format, settings: &Settings) -> Result<Vec<Outcome>, String> {
@@ -162,4 +166,47 @@ fn judge(source: &Source, format: Format, settings: &Settings) -> Result<Vec<Out
 /// Milliseconds since `start`, to the microsecond.
 fn millis(start: Instant) -> f64 {
     (start.elapsed().as_secs_f64() * 1e6).round() / 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::walk::{walk, Filter};
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    #[test]
+    fn a_panic_becomes_its_message() {
+        let n = 3;
+        assert_eq!(
+            caught(|| panic!("index {n} out of range")),
+            Err::<(), _>("index 3 out of range".into())
+        );
+        assert_eq!(caught(|| panic!("static")), Err::<(), _>("static".into()));
+        assert_eq!(caught(|| 7), Ok(7));
+    }
+
+    #[test]
+    fn every_file_reports_progress_and_rows_come_sorted() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets/rules");
+        let sources = walk(&[root], &Filter::everything());
+        let settings = Settings {
+            jobs: 2,
+            ..Settings::default()
+        };
+        let files = AtomicUsize::new(0);
+        let rows = AtomicUsize::new(0);
+        let progress = |n: usize| {
+            files.fetch_add(1, Ordering::Relaxed);
+            rows.fetch_add(n, Ordering::Relaxed);
+        };
+        let mut paths = Vec::new();
+        scan(&sources, &settings, &progress, |o| {
+            paths.push((o.row.path, o.row.mesh));
+            Ok::<(), std::io::Error>(())
+        })
+        .unwrap();
+        assert_eq!(files.into_inner(), sources.len());
+        assert_eq!(rows.into_inner(), paths.len());
+        assert!(paths.windows(2).all(|w| w[0] <= w[1]), "{paths:?}");
+    }
 }

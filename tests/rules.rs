@@ -39,7 +39,10 @@ fn fixture(rule: Rule) -> Option<PathBuf> {
         .map(|e| e.unwrap().path())
         .filter(|p| p.file_stem().and_then(|s| s.to_str()) == Some(rule.name()))
         .collect();
-    assert!(found.len() <= 1, "more than one fixture for {rule}: {found:?}");
+    assert!(
+        found.len() <= 1,
+        "more than one fixture for {rule}: {found:?}"
+    );
     found.pop()
 }
 
@@ -94,7 +97,11 @@ fn every_fixture_is_named_after_a_rule() {
     for entry in std::fs::read_dir(fixtures()).unwrap() {
         let path = entry.unwrap().path();
         let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
-        assert!(Rule::from_name(&stem).is_some(), "{} names no rule", path.display());
+        assert!(
+            Rule::from_name(&stem).is_some(),
+            "{} names no rule",
+            path.display()
+        );
     }
 }
 
@@ -128,11 +135,15 @@ fn fixtures_whose_rule_is_the_only_defect_have_no_other_findings() {
 fn severities_decide_the_status() {
     let cavity = fixture(Rule::Cavity).unwrap();
     let defaults = scan_one(&cavity, &Settings::default());
-    assert_eq!(defaults[0].row.status, Some(Status::Pass), "cavity is off by default");
+    assert_eq!(
+        defaults[0].row.status,
+        Some(Status::Pass),
+        "cavity is off by default"
+    );
     assert_eq!(defaults[0].row.findings, "");
 
-    let print = Config::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/print.toml"))
-        .unwrap();
+    let print =
+        Config::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/print.toml")).unwrap();
     let print = Settings::default().merge(&print);
     let printed = scan_one(&cavity, &print);
     assert_eq!(printed[0].row.status, Some(Status::Warn));
@@ -146,7 +157,10 @@ fn severities_decide_the_status() {
 
 #[test]
 fn the_mirrored_fixture_reports_its_mesh_by_name() {
-    let outcomes = scan_one(&fixture(Rule::MirroredInstance).unwrap(), &Settings::default());
+    let outcomes = scan_one(
+        &fixture(Rule::MirroredInstance).unwrap(),
+        &Settings::default(),
+    );
     assert_eq!(outcomes[0].row.mesh, "tetra");
     assert_eq!(outcomes[0].row.mirrored_instances, Some(1));
     assert_eq!(outcomes[0].row.shells, Some(1));
