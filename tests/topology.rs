@@ -423,6 +423,29 @@ fn flat_grid_is_a_disc() {
     assert_close(a.area, 6.0);
 }
 
+/// A flat annulus: the 3 x 3 grid without its centre cell (triangles 8 and 9).
+///
+/// V = 16 (every grid point still bounds a kept cell); E = 3 x 4 + 4 x 3 + 9 diagonals - 1 (the
+/// centre diagonal) = 32; F = 16; chi = 16 - 32 + 16 = 0. Border: 12 outside + 4 around the centre =
+/// 16 edges in 2 loops; g = (2 - 0 - 2)/2 = 0.
+#[test]
+fn flat_annulus_has_two_holes() {
+    let mut mesh = shapes::grid(3, 3);
+    mesh.triangles.drain(8..10);
+    let a = run(&mesh);
+    assert_eq!(
+        counts(&a),
+        Counts {
+            border_edges: 16,
+            components: 1,
+            ..clean(16, 32, 16)
+        }
+    );
+    assert_eq!(a.holes(), 2);
+    assert_eq!(a.genus(), Some(0));
+    assert!(a.orientable() && a.oriented());
+}
+
 /// An open tube: 5 vertices around, 2 rings of quads up, both ends open.
 ///
 /// V = 5 x 3 = 15; E = 5 x 3 (around) + 5 x 2 (up) + 5 x 2 (diagonals) = 35; F = 20;
@@ -1905,8 +1928,8 @@ fn swing_returns_after_vertex_degree() {
     for (name, mesh) in meshes {
         let t = table(&mesh);
         let mut degree = vec![0usize; t.vertex_count()];
-        for &v in t.vertices() {
-            degree[v as usize] += 1;
+        for c in 0..t.corner_count() as u32 {
+            degree[t.v(c) as usize] += 1;
         }
         for c in 0..t.corner_count() as u32 {
             let d = degree[t.v(c) as usize];
