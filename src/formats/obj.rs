@@ -64,6 +64,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Parsed, ReadError> {
         mtllibs: Vec::new(),
         max_index: (0, 0),
         odd_numbers: (0, 0),
+        malformed: (0, 0),
     };
     // Rough preallocation from the file size (a vertex line is at least ~8 bytes); capped so a
     // large file of comments does not reserve much.
@@ -150,6 +151,8 @@ struct Parser<'c> {
     max_index: (u64, u64),
     /// (count, first line) of coordinates written in C's `1.#IND`/`1.#QNAN` style, read as NaN.
     odd_numbers: (u64, u64),
+    /// (count, first line) of malformed numbers read by their leading part.
+    malformed: (u64, u64),
 }
 
 fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
@@ -217,12 +220,20 @@ impl Parser<'_> {
                     count(&mut self.odd_numbers, line_no);
                     f64::NAN
                 }
-                Err(_) => {
-                    return Err(line_err(
-                        line_no,
-                        format!("`{}` is not a number - fix the line or re-export", short(w)),
-                    ))
-                }
+                // `3.1+e2`: read like C's strtod (the leading number) and noted, as other
+                // readers do; a word with no leading number is an error.
+                Err(_) => match leading_number(w) {
+                    Some(x) => {
+                        count(&mut self.malformed, line_no);
+                        x
+                    }
+                    None => {
+                        return Err(line_err(
+                            line_no,
+                            format!("`{}` is not a number - fix the line or re-export", short(w)),
+                        ))
+                    }
+                },
             };
         }
         if self.mesh.positions.len() as u64 >= self.cx.limits.max_triangles {
@@ -355,6 +366,13 @@ impl Parser<'_> {
                 self.odd_numbers.0, self.odd_numbers.1
             ));
         }
+        if self.malformed.0 > 0 {
+            notes.push(format!(
+                "{} malformed number(s) read by their leading digits, e.g. `3.1+e2` as 3.1 (first \
+                 at line {}); check the exporter",
+                self.malformed.0, self.malformed.1
+            ));
+        }
         for (keyword, (times, first)) in &self.skipped {
             notes.push(format!(
                 "{times} line(s) with unknown keyword `{keyword}` skipped (first at line {first})"
@@ -366,6 +384,17 @@ impl Parser<'_> {
             mtllibs: self.mtllibs,
         })
     }
+}
+
+/// The longest leading part of `w` that is a number (like C's `strtod`), if any.
+fn leading_number(w: &str) -> Option<f64> {
+    if w.len() > 64 {
+        return None;
+    }
+    (1..w.len())
+        .rev()
+        .filter(|&k| w.is_char_boundary(k))
+        .find_map(|k| w[..k].parse::<f64>().ok())
 }
 
 /// The line up to a `#` that starts a word (a `#` inside a word is part of it: `1.#IND`).

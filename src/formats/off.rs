@@ -47,6 +47,51 @@ impl<'a> Lines<'a> {
     }
 }
 
+/// Whitespace-separated tokens of the body, `#` comments skipped, with their 1-based lines.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    line: u64,
+}
+
+impl<'a> Cursor<'a> {
+    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        loop {
+            let &b = self.bytes.get(self.pos)?;
+            if b == b'#' {
+                self.skip_line();
+            } else if b.is_ascii_whitespace() {
+                if b == b'\n' {
+                    self.line += 1;
+                }
+                self.pos += 1;
+            } else {
+                break;
+            }
+        }
+        let start = self.pos;
+        while self
+            .bytes
+            .get(self.pos)
+            .is_some_and(|&b| !b.is_ascii_whitespace() && b != b'#')
+        {
+            self.pos += 1;
+        }
+        Some((&self.bytes[start..self.pos], self.line))
+    }
+
+    /// Skips to the start of the next line.
+    fn skip_line(&mut self) {
+        while let Some(&b) = self.bytes.get(self.pos) {
+            self.pos += 1;
+            if b == b'\n' {
+                self.line += 1;
+                return;
+            }
+        }
+    }
+}
+
 fn words(line: &[u8]) -> impl Iterator<Item = &[u8]> {
     line.split(|b| b.is_ascii_whitespace())
         .filter(|w| !w.is_empty())
@@ -77,11 +122,15 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     };
     let mut head = words(first);
     let keyword = head.next().unwrap_or_default();
-    let Some(prefix) = keyword
-        .len()
-        .checked_sub(3)
-        .filter(|&k| keyword[k..].eq_ignore_ascii_case(b"OFF"))
-        .map(|k| &keyword[..k])
+    // `[ST][C][N][4][n]OFF`, possibly glued to the first count (`OFF8 6 12` is seen in the wild).
+    let at = keyword
+        .windows(3)
+        .position(|w| w.eq_ignore_ascii_case(b"OFF"));
+    let glued = at.map(|k| &keyword[k + 3..]);
+    let Some((prefix, glued)) = at
+        .zip(glued)
+        .filter(|(_, g)| g.iter().all(u8::is_ascii_digit))
+        .map(|(k, g)| (&keyword[..k], g))
     else {
         let what = if first.iter().any(|&b| b < 0x09 || b >= 0x80) {
             "binary data".to_string()
@@ -106,7 +155,11 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             .push("4OFF: the homogeneous w coordinate was ignored".into());
     }
     // Counts: on the keyword line after it, or on the next line.
-    let mut counts: Vec<&[u8]> = head.collect();
+    let mut counts: Vec<&[u8]> = Some(glued)
+        .filter(|g| !g.is_empty())
+        .into_iter()
+        .chain(head)
+        .collect();
     if counts
         .first()
         .is_some_and(|w| w.eq_ignore_ascii_case(b"BINARY"))
@@ -170,38 +223,37 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     mesh.positions.reserve_exact(n_vertices as usize);
     mesh.triangles.reserve(n_faces as usize);
 
+    // The body is read as tokens that may cross lines (some writers wrap long faces); what
+    // is left on a line after a vertex's x y z or a face's indices (normals, colours, texture
+    // coordinates) is skipped.
+    let mut body = Cursor {
+        bytes: lines.rest,
+        pos: 0,
+        line: lines.line + 1,
+    };
+    let truncated = |k: u64, n: u64, what: &str| {
+        ReadError::new(format!(
+            "truncated OFF: the file ends after {k} of {n} {what} - re-export it"
+        ))
+    };
     for k in 0..n_vertices {
-        let Some((l, no)) = lines.next() else {
-            return Err(ReadError::new(format!(
-                "truncated OFF: the file ends after {k} of {n_vertices} vertices - re-export it"
-            )));
-        };
         let mut p = [0.0f64; 3];
-        let mut w = words(l);
-        for (axis, c) in p.iter_mut().enumerate() {
-            let Some(word) = w.next() else {
-                return Err(line_err(
-                    no,
-                    format!("vertex {k} has {axis} coordinate(s), needs x y z"),
-                ));
-            };
+        for c in &mut p {
+            let (word, no) = body
+                .next()
+                .ok_or_else(|| truncated(k, n_vertices, "vertices"))?;
             *c = number(word).ok_or_else(|| {
                 line_err(no, format!("vertex {k}: `{}` is not a number", text(word)))
             })?;
         }
+        body.skip_line();
         mesh.positions.push(p);
     }
 
     let mut tally = SplitTally::default();
     let mut poly = Vec::new();
     for k in 0..n_faces {
-        let Some((l, no)) = lines.next() else {
-            return Err(ReadError::new(format!(
-                "truncated OFF: the file ends after {k} of {n_faces} faces - re-export it"
-            )));
-        };
-        let mut w = words(l);
-        let first = w.next().unwrap_or_default();
+        let (first, no) = body.next().ok_or_else(|| truncated(k, n_faces, "faces"))?;
         let n: usize = number(first).ok_or_else(|| {
             line_err(
                 no,
@@ -210,12 +262,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         })?;
         poly.clear();
         for _ in 0..n {
-            let Some(word) = w.next() else {
-                return Err(line_err(
-                    no,
-                    format!("face {k} declares {n} vertices but lists fewer"),
-                ));
-            };
+            let (word, no) = body.next().ok_or_else(|| truncated(k, n_faces, "faces"))?;
             let i: i64 = number(word).ok_or_else(|| {
                 line_err(
                     no,
@@ -234,6 +281,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             poly.push(i as u32);
         }
         // Anything after the indices is the face colour.
+        body.skip_line();
         let split = polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
         tally.add(split, no);
         if mesh.triangles.len() as u64 > cx.limits.max_triangles {
@@ -245,10 +293,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         }
     }
     tally.notes("line", &mut mesh.notes);
-    if lines.next().is_some() {
+    if let Some((_, no)) = body.next() {
         mesh.notes.push(format!(
-            "data after the {n_faces} declared faces was ignored (from line {})",
-            lines.line
+            "data after the {n_faces} declared faces was ignored (from line {no})"
         ));
     }
     Ok(mesh)

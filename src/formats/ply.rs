@@ -72,6 +72,8 @@ impl PropertyAccess for Vertex {
 struct Face {
     signed: Vec<i32>,
     unsigned: Vec<u32>,
+    /// From ASCII lines.
+    wide: Vec<i64>,
 }
 
 fn is_index_list(key: &str) -> bool {
@@ -156,7 +158,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
              is a PLY (a renamed or corrupted file?)",
         ));
     }
-    let mut reader = Reader::new(bytes);
+    let mut mesh = Mesh::default();
+    let (header_text, body_start, header_lines) = split_header(bytes, &mut mesh.notes)?;
+    let mut reader = Reader::new(header_text.as_bytes());
     let header = Parser::<Skip>::new()
         .read_header(&mut reader)
         .map_err(|e| {
@@ -165,11 +169,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 flat(&e.to_string())
             ))
         })?;
-    let body: &[u8] = reader.get_ref();
-    let header_lines = bytes[..bytes.len() - body.len()]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count() as u64;
+    let body = &bytes[body_start..];
 
     // Check every declared count against what the file can hold before reading anything.
     let mut need = 0u128;
@@ -238,7 +238,6 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         }
     }
 
-    let mut mesh = Mesh::default();
     // Backed by the size check above (every vertex takes at least a few bytes of the file).
     mesh.positions.reserve_exact(n_vertices);
     mesh.triangles.reserve(n_faces.min(1 << 22));
@@ -272,6 +271,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                         .iter()
                         .map(|&k| k as i64)
                         .chain(f.unsigned.iter().map(|&k| k as i64))
+                        .chain(f.wide.iter().copied())
                     {
                         if index < 0 || index as usize >= n_vertices {
                             return Err(ReadError::new(format!(
@@ -316,7 +316,169 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         tally.add(split, *i);
     }
     tally.notes("face (0-based)", &mut mesh.notes);
+    if body.encoding != Encoding::Ascii && !body.rest.is_empty() {
+        mesh.notes.push(format!(
+            "{} bytes after the last element declared in the header were ignored",
+            body.rest.len()
+        ));
+    }
     Ok(mesh)
+}
+
+/// Filling an element from ASCII tokens. ply-rs's ASCII grammar rejects `nan` and `inf`, which
+/// a validator must read (and report), so ASCII payload lines are split here.
+trait Ascii {
+    /// A scalar property; false when the token is not a number where one is needed.
+    fn scalar(&mut self, _key: &str, _token: &str) -> bool {
+        true
+    }
+    /// One item of a list property.
+    fn list_item(&mut self, _key: &str, _token: &str) -> bool {
+        true
+    }
+}
+
+impl Ascii for Vertex {
+    fn scalar(&mut self, key: &str, token: &str) -> bool {
+        match token.parse::<f64>() {
+            Ok(v) => {
+                self.set(key, v);
+                true
+            }
+            Err(_) => !matches!(key, "x" | "y" | "z"),
+        }
+    }
+}
+
+impl Ascii for Face {
+    fn list_item(&mut self, key: &str, token: &str) -> bool {
+        if !is_index_list(key) {
+            return true;
+        }
+        match token.parse::<i64>() {
+            Ok(v) => {
+                self.wide.push(v);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+}
+
+impl Ascii for Skip {}
+
+/// One ASCII element line, property by property (tokens beyond the declared ones are ignored).
+fn read_ascii_element<E: PropertyAccess + Ascii>(
+    line: &str,
+    def: &ElementDef,
+) -> Result<E, String> {
+    let mut e = E::new();
+    let mut tokens = line.split_ascii_whitespace();
+    for (key, p) in &def.properties {
+        let missing = || format!("the line ends before property `{key}`");
+        let token = tokens.next().ok_or_else(missing)?;
+        match &p.data_type {
+            PropertyType::Scalar(_) => {
+                if !e.scalar(key, token) {
+                    return Err(format!(
+                        "`{}` is not a number (property `{key}`)",
+                        cut(token)
+                    ));
+                }
+            }
+            PropertyType::List(..) => {
+                let n: usize = token.parse().map_err(|_| {
+                    format!("`{}` is not a list length (property `{key}`)", cut(token))
+                })?;
+                for k in 0..n {
+                    let item = tokens.next().ok_or_else(|| {
+                        format!("list `{key}` declares {n} items but the line has {k}")
+                    })?;
+                    if !e.list_item(key, item) {
+                        return Err(format!("`{}` is not an integer (list `{key}`)", cut(item)));
+                    }
+                }
+            }
+        }
+    }
+    Ok(e)
+}
+
+fn cut(token: &str) -> String {
+    token.chars().take(40).collect()
+}
+
+/// The header as clean `\n`-separated lines for ply-rs, the offset of the payload and the number
+/// of header lines. Real files end lines with `\r\n` or a bare `\r` (old Mac exporters), indent
+/// header lines, or carry comment text without `comment`: such lines are cleaned or skipped
+/// (with a note) rather than failing the file.
+fn split_header(bytes: &[u8], notes: &mut Vec<String>) -> Result<(String, usize, u64), ReadError> {
+    const KEYWORDS: [&str; 7] = [
+        "ply",
+        "format",
+        "comment",
+        "obj_info",
+        "element",
+        "property",
+        "end_header",
+    ];
+    // The line ending style of the file, from its first line: it decides where `end_header`'s
+    // line (and so the binary payload) ends.
+    // Only a file whose lines end with a bare `\r` can have `end_header\r` followed by a payload
+    // starting with `\n`; elsewhere `end_header\r\n` is one line end (seen after `\n` lines).
+    let crlf = !(bytes.starts_with(b"ply\r") && !bytes.starts_with(b"ply\r\n"));
+    let mut header = String::new();
+    let mut pos = 0;
+    let mut line_no = 0u64;
+    let mut skipped = 0u64;
+    while pos < bytes.len() {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n' || b == b'\r')
+            .map_or(bytes.len(), |k| pos + k);
+        let next = if crlf && bytes.get(end) == Some(&b'\r') && bytes.get(end + 1) == Some(&b'\n') {
+            end + 2
+        } else {
+            end + 1
+        };
+        line_no += 1;
+        let line = String::from_utf8_lossy(&bytes[pos..end]);
+        let line = line.trim();
+        pos = next.min(bytes.len());
+        let first = line.split_ascii_whitespace().next().unwrap_or("");
+        if first == "end_header" {
+            header.push_str("end_header\n");
+            return Ok((header, pos, line_no));
+        }
+        if line.is_empty() {
+            continue;
+        }
+        if !KEYWORDS.contains(&first) {
+            skipped += 1;
+            if skipped == 1 {
+                notes.push(format!(
+                    "PLY header line {line_no} is not a header statement (`{}`); skipped",
+                    cut(line)
+                ));
+            }
+            continue;
+        }
+        // One space between words: ply-rs's grammar rejects tabs and runs of spaces.
+        for (k, word) in line.split_ascii_whitespace().enumerate() {
+            if k > 0 {
+                header.push(' ');
+            }
+            header.push_str(word);
+        }
+        header.push('\n');
+        if header.len() > 1 << 20 {
+            break;
+        }
+    }
+    Err(ReadError::new(
+        "invalid PLY header: no `end_header` line (or a header over 1 MB) - the file is truncated \
+         or not a PLY",
+    ))
 }
 
 /// Error text from ply-rs on one line.
@@ -341,7 +503,11 @@ impl Body<'_> {
         }
     }
 
-    fn element<E: PropertyAccess>(&mut self, def: &ElementDef, i: usize) -> Result<E, ReadError> {
+    fn element<E: PropertyAccess + Ascii>(
+        &mut self,
+        def: &ElementDef,
+        i: usize,
+    ) -> Result<E, ReadError> {
         let parser = Parser::<E>::new();
         let result = match self.encoding {
             Encoding::Ascii => {
@@ -357,10 +523,11 @@ impl Body<'_> {
                     let end = self
                         .rest
                         .iter()
-                        .position(|&b| b == b'\n')
+                        .position(|&b| b == b'\n' || b == b'\r')
                         .unwrap_or(self.rest.len());
                     let line = &self.rest[..end];
-                    self.rest = self.rest.get(end + 1..).unwrap_or(&[]);
+                    let crlf = self.rest.get(end..end + 2) == Some(b"\r\n");
+                    self.rest = self.rest.get(end + 1 + usize::from(crlf)..).unwrap_or(&[]);
                     self.line += 1;
                     if !line.trim_ascii().is_empty() {
                         break line;
@@ -372,7 +539,12 @@ impl Body<'_> {
                         self.line
                     ))
                 })?;
-                parser.read_ascii_element(text, def)
+                return read_ascii_element(text, def).map_err(|what| {
+                    ReadError::new(format!(
+                        "PLY {} {i} (line {}): {what} - fix or re-export the file",
+                        def.name, self.line
+                    ))
+                });
             }
             Encoding::BinaryLittleEndian => parser.read_little_endian_element(&mut self.rest, def),
             Encoding::BinaryBigEndian => parser.read_big_endian_element(&mut self.rest, def),

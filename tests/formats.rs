@@ -1,0 +1,395 @@
+//! The OBJ, STL, PLY and OFF readers through `meshvet::formats::read`, on files written to a
+//! temporary folder: each format's happy path with hand-counted positions and triangles, hostile
+//! inputs (empty, truncated, absurd header counts, NaN, indices out of range, binary garbage,
+//! another format under the extension) and the real-world corpus in `../shared/corpus`.
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+
+use meshvet::formats::{read, Format, Limits, ReadContext, ReadError};
+use meshvet::Mesh;
+
+/// Writes `bytes` to `name` in a fresh temporary folder and reads it as that name's format.
+fn load(name: &str, bytes: &[u8]) -> Result<Mesh, ReadError> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    std::fs::write(&path, bytes).unwrap();
+    load_path(&path, dir.path())
+}
+
+fn load_path(path: &Path, root: &Path) -> Result<Mesh, ReadError> {
+    let cx = ReadContext {
+        root: root.to_path_buf(),
+        limits: Limits::default(),
+    };
+    let format = Format::of_path(path).expect("a mesh extension");
+    let mut meshes = read(path, format, &cx)?;
+    assert_eq!(meshes.len(), 1, "one mesh per file for {}", path.display());
+    let mesh = meshes.pop().unwrap();
+    assert!(mesh.name.is_none());
+    let n = mesh.positions.len() as u32;
+    assert!(
+        mesh.triangles.iter().flatten().all(|&i| i < n),
+        "index out of range"
+    );
+    Ok(mesh)
+}
+
+fn ok(name: &str, bytes: &[u8]) -> Mesh {
+    load(name, bytes).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+fn err(name: &str, bytes: &[u8]) -> String {
+    match load(name, bytes) {
+        Ok(m) => panic!("{name} should not load, got {m:?}"),
+        Err(e) => e.0,
+    }
+}
+
+fn binary_stl(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut b = b"solid binary header written by an exporter that says solid".to_vec();
+    b.resize(80, b' ');
+    b.extend((tris.len() as u32).to_le_bytes());
+    for t in tris {
+        b.extend([0u8; 12]);
+        for c in t.iter().flatten() {
+            b.extend(c.to_le_bytes());
+        }
+        b.extend([0u8; 2]);
+    }
+    b
+}
+
+/// A unit cube as 8 vertices and 6 quads (OBJ numbering, 1-based): V=8, F=12 triangles.
+const CUBE_OBJ: &str = "\
+mtllib cube.mtl
+o cube
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 1 0 1
+v 1 1 1
+v 0 1 1
+v 5 5 5
+vt 0 0
+vn 0 0 -1
+usemtl red
+f 1/1/1 4/1/1 3/1/1 2/1/1
+f 5 6 7 8
+g sides
+f 1//1 2//1 6//1 5//1
+f 2 3 7 6
+f 3 4 8 7
+f -9 -5 -2 -6
+";
+
+#[test]
+fn obj_cube_keeps_the_unreferenced_vertex() {
+    let m = ok("cube.obj", CUBE_OBJ.as_bytes());
+    // 9 `v` lines, one of them unreferenced; 6 quads -> 12 triangles.
+    assert_eq!(m.positions.len(), 9);
+    assert_eq!(m.positions[8], [5.0, 5.0, 5.0]);
+    assert_eq!(m.triangles.len(), 12);
+    // The last face is relative: with 9 vertices, -9 -5 -2 -6 are vertices 1 5 8 4 (0-based
+    // 0 4 7 3), a convex square split as a fan.
+    assert_eq!(m.triangles[10..], [[0, 4, 7], [0, 7, 3]]);
+    // The .mtl is missing: a note, not an error.
+    assert!(m
+        .notes
+        .iter()
+        .any(|n| n.contains("cube.mtl") && n.contains("not found")));
+}
+
+#[test]
+fn obj_mtl_that_crashes_tobj_is_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 1 0\n").unwrap();
+    let obj = dir.path().join("m.obj");
+    std::fs::write(
+        &obj,
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n",
+    )
+    .unwrap();
+    let m = load_path(&obj, dir.path()).unwrap();
+    assert_eq!(m.triangles.len(), 1);
+    let note = m.notes.join("\n");
+    assert!(note.contains("m.mtl") && note.contains("Kd"), "{note}");
+    // A good .mtl gives no note; one outside the folder is not read.
+    std::fs::write(dir.path().join("m.mtl"), "newmtl red\nKd 1 0 0\n").unwrap();
+    assert!(load_path(&obj, dir.path()).unwrap().notes.is_empty());
+    std::fs::write(&obj, "mtllib ../m.mtl\nv 0 0 0\n").unwrap();
+    let m = load_path(&obj, dir.path()).unwrap();
+    assert!(
+        m.notes[0].contains("leaves the OBJ's folder"),
+        "{:?}",
+        m.notes
+    );
+}
+
+#[test]
+fn obj_hostile() {
+    assert!(ok("e.obj", b"").triangles.is_empty());
+    let e = err("z.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n");
+    assert!(e.contains("line 4") && e.contains("start at 1"), "{e}");
+    let e = err("r.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 30\n");
+    assert!(e.contains("line 5") && e.contains("30"), "{e}");
+    let m = ok("n.obj", b"v nan inf -inf\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    assert!(m.positions[0][0].is_nan() && m.positions[0][1] == f64::INFINITY);
+    assert!(err("u.obj", b"\xff\xfev\x00 \x001\x00").contains("UTF-16"));
+    let garbage: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    let _ = load("g.obj", &garbage); // error or notes, never a panic
+    let png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR";
+    assert!(err("p.obj", png).contains("binary data"));
+    let m = ok("pl.obj", b"v 0 0 0\nv 1 0 0\np 1 2\nl 1 2\n");
+    assert!(
+        m.triangles.is_empty() && m.notes.len() == 2,
+        "{:?}",
+        m.notes
+    );
+}
+
+#[test]
+fn stl_binary_and_ascii() {
+    let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, -0.0]];
+    let m = ok("b.stl", &binary_stl(&[t, t, t]));
+    assert_eq!((m.positions.len(), m.triangles.len()), (9, 3));
+    assert_eq!(m.triangles[2], [6, 7, 8]);
+    let ascii =
+        "solid one\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n\
+                 endloop\nendfacet\nendsolid one\nsolid two\n  facet normal 0 0 1\n    outer loop\n\
+                 vertex 0 0 1\nvertex 1 0 1\nvertex 1 1 1\nvertex 0.5 1.5 1\nvertex 0 1 1\n\
+                 endloop\n  endfacet\nendsolid two\n";
+    let m = ok("a.stl", ascii.as_bytes());
+    // A triangle and a pentagon: 3 + 5 positions, 1 + 3 triangles.
+    assert_eq!((m.positions.len(), m.triangles.len()), (8, 4));
+}
+
+#[test]
+fn stl_hostile() {
+    assert!(ok("e.stl", b"").triangles.is_empty());
+    let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let mut b = binary_stl(&vec![t; 40]);
+    b.truncate(84 + 50 * 37 + 11);
+    let e = err("t.stl", &b);
+    assert!(
+        e.contains("declares 40 triangles") && e.contains("holds 37"),
+        "{e}"
+    );
+    // A header claiming 4 billion triangles in a small file.
+    let mut b = binary_stl(&[t]);
+    b[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
+    assert!(err("h.stl", &b).contains("declares 4294967295"));
+    let nan = [[f32::NAN, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    assert!(ok("n.stl", &binary_stl(&[nan])).positions[0][0].is_nan());
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.resize(300, 0);
+    assert!(err("png.stl", &png).contains("not an STL"));
+    assert!(err(
+        "s.stl",
+        b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n"
+    )
+    .contains("line"));
+}
+
+const PLY_HEAD: &str =
+    "ply\nformat ascii 1.0\nelement vertex 5\nproperty double x\nproperty double y\n\
+    property double z\nelement face 2\nproperty list uchar uint vertex_indices\nend_header\n";
+
+#[test]
+fn ply_ascii_and_binary() {
+    // A pentagon and a triangle: 3 + 1 triangles.
+    let s = format!("{PLY_HEAD}0 0 0\n2 0 0\n2 2 0\n1 1 0\n0 2 0\n5 0 1 2 3 4\n3 0 1 3\n");
+    let m = ok("a.ply", s.as_bytes());
+    assert_eq!((m.positions.len(), m.triangles.len()), (5, 4));
+    // The pentagon is concave at (1,1): ear clipping, noted.
+    assert!(
+        m.notes.iter().any(|n| n.contains("ear clipping")),
+        "{:?}",
+        m.notes
+    );
+
+    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n\
+        property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_index\n\
+        end_header\n"
+        .to_vec();
+    for c in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        b.extend(c.to_le_bytes());
+    }
+    b.push(3);
+    for i in [0i32, 1, 2] {
+        b.extend(i.to_le_bytes());
+    }
+    let m = ok("b.ply", &b);
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    b.truncate(b.len() - 2);
+    assert!(err("t.ply", &b).contains("truncated"));
+}
+
+#[test]
+fn ply_hostile() {
+    assert!(ok("e.ply", b"").triangles.is_empty());
+    let huge = "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n\
+        property float y\nproperty float z\nend_header\n0 0 0\n";
+    let e = err("h.ply", huge.as_bytes());
+    assert!(e.contains("4000000000") && e.contains("truncated"), "{e}");
+    let s = format!("{PLY_HEAD}0 0 0\n2 0 0\n2 2 0\nnan 1 0\n0 2 0\n3 0 1 2\n3 0 1 5\n");
+    let e = err("r.ply", s.as_bytes());
+    assert!(e.contains("face 1") && e.contains("vertex index 5"), "{e}");
+    let s = format!("{PLY_HEAD}0 0 0\n2 0 0\n2 2 0\nnan 1 0\n0 2 0\n3 0 1 2\n3 0 1 3\n");
+    assert!(ok("n.ply", s.as_bytes()).positions[3][0].is_nan());
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.resize(300, 7);
+    assert!(err("png.ply", &png).contains("not a PLY"));
+    let garbage: Vec<u8> = b"ply\n"
+        .iter()
+        .copied()
+        .chain((0..2000u32).map(|i| (i.wrapping_mul(40503) >> 7) as u8))
+        .collect();
+    let _ = load("g.ply", &garbage);
+}
+
+#[test]
+fn off_happy_and_hostile() {
+    // Header counts on the OFF line, comments, a quad with a colour: 4 positions, 2 + 1 triangles.
+    let m = ok(
+        "q.off",
+        b"OFF 4 2 0 # counts here\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3 0.5 0.5 0.5\n3 0 2 3\n",
+    );
+    assert_eq!((m.positions.len(), m.triangles.len()), (4, 3));
+    assert!(ok("e.off", b"").triangles.is_empty());
+    let e = err("h.off", b"OFF\n4000000000 4000000000 0\n0 0 0\n");
+    assert!(e.contains("truncated") && e.contains("4000000000"), "{e}");
+    let e = err("r.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+    assert!(e.contains("line 6") && e.contains("7"), "{e}");
+    assert!(ok("n.off", b"OFF\n3 1 0\nnan 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").positions[0][0].is_nan());
+    assert!(err("t.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n").contains("truncated"));
+    assert!(err("png.off", b"\x89PNG\r\n\x1a\n\0\0").contains("not an OFF"));
+}
+
+/// Every mesh file of the shared corpus loads without a panic, and where the reference libraries
+/// agree unanimously (k/k, k >= 2) on the triangle count, ours is the same.
+#[test]
+fn corpus() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    if !root.is_dir() {
+        println!("skip: no corpus at {}", root.display());
+        return;
+    }
+    // Files where the references count differently by definition (reason given).
+    let excluded: BTreeMap<&str, &str> = BTreeMap::from([
+        (
+            "assimp/OFF/invalid.off",
+            "face 1 uses vertex index 20 in a 3-vertex file: an index out of range is an error \
+             row for us, the libraries drop the face",
+        ),
+        (
+            "tinyobjloader/invalid-relative-vertex-index.obj",
+            "relative index before the first vertex: an error row for us, the libraries drop \
+             the face",
+        ),
+        (
+            "tinyobjloader/invalid-relative-texture-index.obj",
+            "face index 1 with no vertices in the file: an error row for us, the libraries drop \
+             the face",
+        ),
+        (
+            "assimp/nonbsd/ant-half.ply",
+            "truncated: the data ends after 259 of the 912 faces the header declares; a \
+             truncated file is an error row for us, the libraries keep the 259 faces",
+        ),
+        (
+            "assimp/PLY/issue623.ply",
+            "the header puts `vertex_indices` on the vertex element (no face element) and the \
+             vertex lines lack it: an error row for us, the libraries read the vertices only",
+        ),
+        (
+            "draco/Box.ply",
+            "header lines end with a bare CR (old Mac style): we read the 8 faces (4 quads, \
+             4 triangles = 12, consuming the 800-byte payload exactly); the libraries find none",
+        ),
+    ]);
+
+    let mut reference = BTreeMap::new();
+    let mut csv = csv::Reader::from_path(root.join("reference_consensus.csv")).unwrap();
+    let headers = csv.headers().unwrap().clone();
+    let col = |name: &str| headers.iter().position(|h| h == name).unwrap();
+    let (file, tris, support) = (col("file"), col("n_triangles"), col("n_triangles_support"));
+    for row in csv.records() {
+        let row = row.unwrap();
+        let Some((k, of)) = row[support].split_once('/') else {
+            continue;
+        };
+        if k == of && k.parse::<u32>().unwrap_or(0) >= 2 {
+            if let Ok(n) = row[tris].parse::<usize>() {
+                reference.insert(row[file].to_string(), n);
+            }
+        }
+    }
+
+    let mut files = Vec::new();
+    for entry in walkdir::WalkDir::new(&root).sort_by_file_name() {
+        let entry = entry.unwrap();
+        let ext = entry
+            .path()
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if matches!(ext.as_deref(), Some("obj" | "stl" | "ply" | "off")) {
+            files.push(entry.into_path());
+        }
+    }
+    let (mut loaded, mut errors, mut matched, mut panics, mut mismatches) =
+        (0, 0, 0, vec![], vec![]);
+    for path in &files {
+        let rel = path
+            .strip_prefix(&root)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        let result = catch_unwind(AssertUnwindSafe(|| load_path(path, &root)));
+        let mesh = match result {
+            Err(_) => {
+                panics.push(rel);
+                continue;
+            }
+            Ok(Err(e)) => {
+                errors += 1;
+                println!("error  {rel}: {e}");
+                None
+            }
+            Ok(Ok(m)) => {
+                loaded += 1;
+                Some(m)
+            }
+        };
+        let Some(&expected) = reference.get(&rel) else {
+            continue;
+        };
+        let got = mesh.as_ref().map(|m| m.triangles.len());
+        if got == Some(expected) {
+            matched += 1;
+        } else if let Some(reason) = excluded.get(rel.as_str()) {
+            println!("excluded {rel}: ours {got:?}, references {expected}: {reason}");
+        } else {
+            mismatches.push(format!("{rel}: ours {got:?}, references {expected}"));
+        }
+    }
+    println!(
+        "corpus: {} files, {loaded} loaded, {errors} errors, {} with a k/k reference count: {matched} \
+         matched, {} excluded, {} mismatched",
+        files.len(),
+        files.iter().filter(|p| reference.contains_key(&p.strip_prefix(&root).unwrap().to_string_lossy().replace('\\', "/"))).count(),
+        excluded.len(),
+        mismatches.len()
+    );
+    assert!(panics.is_empty(), "panics: {panics:#?}");
+    assert!(
+        mismatches.is_empty(),
+        "triangle counts differ: {mismatches:#?}"
+    );
+}
