@@ -7,8 +7,7 @@
 //!
 //! This file is included with `mod shapes;` from `tests/` and with
 //! `#[path = "../tests/shapes/mod.rs"] mod shapes;` from `benches/`, so it depends on nothing but
-//! `meshvet` and `std`.
-#![allow(dead_code)]
+//! `meshvet` and `std`. Each includer uses part of it, so it puts `#[allow(dead_code)]` on its `mod`.
 
 use std::f64::consts::TAU;
 
