@@ -22,8 +22,9 @@ use crate::rules::{self, Finding, MeshFacts, Status};
 use crate::topology::analyse;
 use crate::walk::Source;
 
-/// Files per chunk for each worker thread.
-const CHUNK_PER_THREAD: usize = 64;
+/// Files per chunk for each worker thread. Rows are small, so a chunk costs little memory; a large
+/// chunk keeps threads busy when one file in it is slow (the chunk ends when its slowest file does).
+const CHUNK_PER_THREAD: usize = 256;
 
 /// Prefix of the scan threads' names: a panic hook can recognise panics that will be caught.
 pub const THREAD_NAME: &str = "meshvet-scan";
