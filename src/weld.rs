@@ -12,7 +12,7 @@ pub const INVALID: u32 = u32::MAX;
 pub struct Welded {
     /// For each input vertex, its welded vertex, or [`INVALID`].
     pub map: Vec<u32>,
-    /// The welded vertices' positions (the first input vertex of each).
+    /// The welded vertices' positions (the first input vertex of each, with -0.0 read as 0.0).
     pub positions: Vec<[f64; 3]>,
     /// Input vertices with a NaN or infinite coordinate.
     pub invalid: usize,
@@ -32,9 +32,16 @@ fn is_valid(p: &[f64; 3]) -> bool {
     p.iter().all(|x| x.is_finite())
 }
 
+/// Exact welding through an open-addressing table of welded ids (4 bytes a slot, load at most 1/2):
+/// a probe compares against the welded position itself, so the table stays small and a run of
+/// coherent input hits memory it has just touched.
 fn weld_exact(positions: &[[f64; 3]]) -> Welded {
-    let mut ids: FxHashMap<[u64; 3], u32> = FxHashMap::default();
-    ids.reserve(positions.len());
+    let bits = (2 * positions.len())
+        .next_power_of_two()
+        .max(16)
+        .trailing_zeros();
+    let mask = (1usize << bits) - 1;
+    let mut slots = vec![INVALID; mask + 1];
     let mut out = Welded {
         map: Vec::with_capacity(positions.len()),
         ..Welded::default()
@@ -46,19 +53,33 @@ fn weld_exact(positions: &[[f64; 3]]) -> Welded {
             continue;
         }
         // Adding 0.0 turns -0.0 into 0.0, so both have one bit pattern.
-        let key = [
-            (p[0] + 0.0).to_bits(),
-            (p[1] + 0.0).to_bits(),
-            (p[2] + 0.0).to_bits(),
-        ];
-        let next = out.positions.len() as u32;
-        let id = *ids.entry(key).or_insert(next);
-        if id == next {
-            out.positions.push(*p);
-        }
+        let q = p.map(|x| x + 0.0);
+        let key = q.map(f64::to_bits);
+        let mut h = hash(key) >> (64 - bits);
+        let id = loop {
+            let id = slots[h as usize];
+            if id == INVALID {
+                let id = out.positions.len() as u32;
+                slots[h as usize] = id;
+                out.positions.push(q);
+                break id;
+            }
+            if out.positions[id as usize].map(f64::to_bits) == key {
+                break id;
+            }
+            h = (h + 1) & mask as u64;
+        };
         out.map.push(id);
     }
     out
+}
+
+/// Mixes the three coordinates' bits; the top bits of the result index the table.
+fn hash(key: [u64; 3]) -> u64 {
+    const K: u64 = 0x9E37_79B9_7F4A_7C15;
+    let h = key[0].wrapping_mul(K).rotate_left(29) ^ key[1];
+    let h = h.wrapping_mul(K).rotate_left(29) ^ key[2];
+    h.wrapping_mul(K)
 }
 
 fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
