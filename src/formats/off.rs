@@ -132,7 +132,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         .filter(|(_, g)| g.iter().all(u8::is_ascii_digit))
         .map(|(k, g)| (&keyword[..k], g))
     else {
-        let what = if first.iter().any(|&b| b < 0x09 || b >= 0x80) {
+        let what = if first.iter().any(|&b| !(0x09..0x80).contains(&b)) {
             "binary data".to_string()
         } else {
             format!("`{}`", text(keyword))

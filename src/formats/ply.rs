@@ -426,7 +426,7 @@ fn split_header(bytes: &[u8], notes: &mut Vec<String>) -> Result<(String, usize,
     // line (and so the binary payload) ends.
     // Only a file whose lines end with a bare `\r` can have `end_header\r` followed by a payload
     // starting with `\n`; elsewhere `end_header\r\n` is one line end (seen after `\n` lines).
-    let crlf = !(bytes.starts_with(b"ply\r") && !bytes.starts_with(b"ply\r\n"));
+    let crlf = !bytes.starts_with(b"ply\r") || bytes.starts_with(b"ply\r\n");
     let mut header = String::new();
     let mut pos = 0;
     let mut line_no = 0u64;
