@@ -37,14 +37,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             return parse_binary(bytes, n, cx);
         }
     }
-    if starts_with_solid(bytes) {
-        let ascii = parse_ascii(bytes, cx);
-        match (&ascii, declared) {
-            (Ok(_), _) | (Err(_), None) => return ascii,
-            // Looks like neither: an ASCII error on a file full of binary bytes would mislead.
-            (Err(_), Some(_)) if !looks_binary(bytes) => return ascii,
-            _ => {}
-        }
+    // Binary data after a `solid` header (a binary file of the wrong size) is not ASCII STL.
+    if starts_with_solid(bytes) && !looks_binary(bytes) {
+        return parse_ascii(bytes, cx);
     }
     if looks_like_other_format(bytes) {
         return Err(ReadError::new(
