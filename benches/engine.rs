@@ -100,12 +100,41 @@ fn bench(label: &str, mesh: &Mesh) {
     );
 }
 
+/// 10,000 unit cubes ("bolts") on a 100 x 100 grid, disjoint or all inside one box: nesting must
+/// prune by bounding boxes before any point-in-solid test.
+fn bench_bolts() {
+    let bolts: Vec<Mesh> = (0..10_000)
+        .map(|i| {
+            let (x, y) = ((i % 100) as f64 * 2.0, (i / 100) as f64 * 2.0);
+            shapes::cuboid([x, y, 0.0], [x + 1.0, y + 1.0, 1.0])
+        })
+        .collect();
+    let disjoint = shapes::merge(&bolts);
+    let mut boxed = bolts;
+    boxed.push(shapes::cuboid([-1.0, -1.0, -1.0], [201.0, 201.0, 2.0]));
+    let boxed = shapes::merge(&boxed);
+    let options = Options::default();
+    for (label, mesh, cavities) in [
+        ("disjoint", &disjoint, 0),
+        ("inside one box", &boxed, 10_000),
+    ] {
+        let (t, a) = best(3, || analyse(mesh, &options));
+        assert_eq!(a.shells.len(), mesh.triangles.len() / 12);
+        assert_eq!(a.cavities(), cavities);
+        println!(
+            "10,000 cube shells, {label}: full analysis with nesting {:.1} ms",
+            t * 1e3
+        );
+    }
+}
+
 fn main() {
     let only: Option<usize> = std::env::args().skip(1).find_map(|a| a.parse().ok());
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build_global()
         .ok();
+    bench_bolts();
     for (millions, n, m) in [(1, 1000, 500), (5, 2500, 1000)] {
         if only.is_some_and(|o| o != millions) {
             continue;
