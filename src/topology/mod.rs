@@ -4,8 +4,10 @@
 
 mod analyse;
 mod nesting;
+mod places;
 
 pub use analyse::analyse;
+pub use places::{places, Places};
 
 /// How the analysis welds vertices (SPEC 3).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

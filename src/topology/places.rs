@@ -1,0 +1,243 @@
+//! Where a mesh's problems are, as geometry a picture can mark: border edges, non-manifold edges and
+//! vertices, and the faces of inside-out shells, over the welded vertices.
+//!
+//! [`analyse`](super::analyse) only counts; this pass rebuilds the same Corner Table (same welding,
+//! same faces left out) and names the places. It is only run for reports that draw meshes, so plain
+//! scans never pay for it. Its counts equal the analysis's (a test checks every rule fixture):
+//!
+//! - a border edge is an edge with `O[c] == c`; a non-manifold edge one listed by
+//!   [`CornerTable::nonmanifold_edges`];
+//! - a non-manifold vertex has two or more **fans**: sets of its corners linked through manifold
+//!   edges at the vertex (union-find over corners);
+//! - components are faces linked through manifold and non-manifold edges, numbered in order of their
+//!   lowest input face, exactly as [`Analysis::components`]; a face is inside-out when its component's
+//!   shell is.
+
+use super::{Analysis, Options};
+use crate::corner_table::CornerTable;
+use crate::mesh::Mesh;
+use crate::weld::{weld, INVALID};
+
+/// The marked places of one mesh. Vertex indices refer to [`Places::points`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Places {
+    /// Welded vertex positions.
+    pub points: Vec<[f64; 3]>,
+    /// The faces of the Corner Table (invalid and degenerate faces left out), as stored.
+    pub triangles: Vec<[u32; 3]>,
+    /// Per face of [`Places::triangles`]: it belongs to an inside-out shell.
+    pub inside_out: Vec<bool>,
+    /// Edges bounding one face, lower vertex first, sorted.
+    pub border_edges: Vec<[u32; 2]>,
+    /// Edges bounding three or more faces, lower vertex first, sorted.
+    pub nonmanifold_edges: Vec<[u32; 2]>,
+    /// Vertices with two or more fans, sorted.
+    pub nonmanifold_vertices: Vec<u32>,
+}
+
+/// Finds the problem places of `mesh`; `analysis` is its [`analyse`](super::analyse) result with the
+/// same `options` (read for the inside-out shells).
+pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
+    let welded = weld(&mesh.positions, options.weld_tolerance);
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for t in &mesh.triangles {
+        let w = t.map(|i| welded.map.get(i as usize).copied().unwrap_or(INVALID));
+        if !w.contains(&INVALID) && w[0] != w[1] && w[1] != w[2] && w[0] != w[2] {
+            triangles.push(w);
+        }
+    }
+    let table = CornerTable::build(&triangles, welded.positions.len());
+    let edge = |c: u32| {
+        let (a, b) = (table.v(CornerTable::n(c)), table.v(CornerTable::p(c)));
+        [a.min(b), a.max(b)]
+    };
+
+    let corners = table.corner_count() as u32;
+    let mut border_edges: Vec<[u32; 2]> = (0..corners)
+        .filter(|&c| table.is_border(c))
+        .map(edge)
+        .collect();
+    border_edges.sort_unstable();
+    let mut nonmanifold_edges: Vec<[u32; 2]> =
+        table.nonmanifold_edges().map(|cs| edge(cs[0])).collect();
+    nonmanifold_edges.sort_unstable();
+
+    // Fans: across each manifold edge, the corners at its two ends are in one fan.
+    let mut fan: Vec<u32> = (0..corners).collect();
+    let corner_at = |t: u32, vertex: u32| {
+        (3 * t..3 * t + 3)
+            .find(|&c| table.v(c) == vertex)
+            .expect("a face across an edge has both its ends")
+    };
+    for c in 0..corners {
+        if let Some(o) = table.opposite(c) {
+            if c < o {
+                for end in [CornerTable::n(c), CornerTable::p(c)] {
+                    let across = corner_at(CornerTable::t(o), table.v(end));
+                    union(&mut fan, end, across);
+                }
+            }
+        }
+    }
+    let mut vertex_fans: Vec<(u32, u32)> = (0..corners)
+        .map(|c| (table.v(c), find(&mut fan, c)))
+        .collect();
+    vertex_fans.sort_unstable();
+    vertex_fans.dedup();
+    let mut nonmanifold_vertices: Vec<u32> = vertex_fans
+        .windows(2)
+        .filter(|w| w[0].0 == w[1].0)
+        .map(|w| w[0].0)
+        .collect();
+    nonmanifold_vertices.dedup();
+
+    // Components: faces linked through manifold and non-manifold edges; numbered like the analysis's
+    // (by lowest face: the table keeps the input order of the faces it holds).
+    let faces = table.triangle_count();
+    let mut component: Vec<u32> = (0..faces as u32).collect();
+    for c in 0..corners {
+        if let Some(o) = table.opposite(c) {
+            union(&mut component, CornerTable::t(c), CornerTable::t(o));
+        }
+    }
+    for cs in table.nonmanifold_edges() {
+        for &c in &cs[1..] {
+            union(&mut component, CornerTable::t(cs[0]), CornerTable::t(c));
+        }
+    }
+    // With the lower root kept, a root is its component's lowest face: numbering roots in face order
+    // numbers components by lowest face.
+    let mut number = vec![u32::MAX; faces];
+    let mut next = 0;
+    for t in 0..faces as u32 {
+        let root = find(&mut component, t) as usize;
+        if number[root] == u32::MAX {
+            number[root] = next;
+            next += 1;
+        }
+    }
+    let mut flipped_component = vec![false; next as usize];
+    for shell in analysis.shells.iter().filter(|s| s.inside_out) {
+        if let Some(f) = flipped_component.get_mut(shell.component) {
+            *f = true;
+        }
+    }
+    let inside_out = (0..faces as u32)
+        .map(|t| {
+            let n = number[find(&mut component, t) as usize];
+            flipped_component[n as usize]
+        })
+        .collect();
+
+    Places {
+        points: welded.positions,
+        triangles: table.triangles().to_vec(),
+        inside_out,
+        border_edges,
+        nonmanifold_edges,
+        nonmanifold_vertices,
+    }
+}
+
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        let up = parent[parent[x as usize] as usize];
+        parent[x as usize] = up;
+        x = up;
+    }
+    x
+}
+
+/// Joins two sets, keeping the lower root.
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra.max(rb) as usize] = ra.min(rb);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::topology::analyse;
+
+    fn check(mesh: &Mesh) -> Places {
+        let options = Options::default();
+        let a = analyse(mesh, &options);
+        let p = places(mesh, &options, &a);
+        assert_eq!(p.border_edges.len(), a.border_edges);
+        assert_eq!(p.nonmanifold_edges.len(), a.nonmanifold_edges);
+        assert_eq!(p.nonmanifold_vertices.len(), a.nonmanifold_vertices);
+        let inside_out_faces: usize = a
+            .shells
+            .iter()
+            .filter(|s| s.inside_out)
+            .map(|s| s.faces)
+            .sum();
+        assert_eq!(
+            p.inside_out.iter().filter(|&&f| f).count(),
+            inside_out_faces
+        );
+        p
+    }
+
+    /// A tetrahedron wound inward beside an outward one: the first shell's four faces are marked.
+    #[test]
+    fn inside_out_faces_follow_their_shell() {
+        let mut positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        positions.extend(positions.clone().iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+        let outward = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+        let mut triangles: Vec<[u32; 3]> = outward.iter().map(|t| [t[0], t[2], t[1]]).collect();
+        triangles.extend(outward.iter().map(|t| t.map(|i| i + 4)));
+        let p = check(&Mesh::new(positions, triangles));
+        assert_eq!(
+            p.inside_out,
+            [true, true, true, true, false, false, false, false]
+        );
+    }
+
+    /// A bowtie (two triangles touching at vertex 0) and three faces on edge 0-1.
+    #[test]
+    fn bowtie_and_fin_are_marked() {
+        let positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [-1.0, -1.0, 0.0],
+        ];
+        let bowtie = check(&Mesh::new(positions.clone(), vec![[0, 1, 2], [0, 3, 4]]));
+        assert_eq!(bowtie.nonmanifold_vertices, [0]);
+        assert_eq!(bowtie.border_edges.len(), 6);
+        let fin = check(&Mesh::new(positions, vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]]));
+        assert_eq!(fin.nonmanifold_edges, [[0, 1]]);
+    }
+
+    /// Every rule fixture: the places agree with the analysis's counts.
+    #[test]
+    fn fixtures_agree_with_the_analysis() {
+        use crate::formats::{self, ReadContext};
+        use crate::walk::{walk, Filter};
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
+        let mut meshes = 0;
+        for source in walk(&[root.clone()], &Filter::everything()) {
+            let Some(format) = source.format else {
+                continue;
+            };
+            let context = ReadContext {
+                root: source.root.clone(),
+                limits: Default::default(),
+            };
+            for mesh in formats::read(&source.path, format, &context).unwrap_or_default() {
+                check(&mesh);
+                meshes += 1;
+            }
+        }
+        assert!(meshes >= 20, "{meshes} meshes");
+    }
+}
