@@ -15,7 +15,13 @@
 //!    faces wound like their neighbours, their corners carrying the attributes of the border corners;
 //! 6. drop unreferenced vertices (the writer renumbers; [`Plan::used_vertices`] says which stay).
 
+use rustc_hash::FxHashMap;
+
+use crate::corner_table::{CornerTable, NON_MANIFOLD};
+use crate::formats::polygon::triangulate;
 use crate::mesh::Mesh;
+use crate::topology::analyse;
+use crate::weld::{weld, INVALID};
 
 /// Which repairs run.
 #[derive(Debug, Clone, PartialEq)]
@@ -182,9 +188,108 @@ impl Plan {
 
 /// Plans the repair of one mesh.
 pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
-    let _ = options;
+    let mut work = Work::new(mesh, options);
+    let mut done = Vec::new();
+    let mut not_repairable = Vec::new();
+    let mut record = |kind: Kind, n: usize, detail: Option<String>| {
+        if n > 0 {
+            done.push((kind, n, detail));
+        }
+    };
+
+    let dropped = work.drop_faces(options);
+    record(Kind::DropInvalidFaces, dropped[0], None);
+    record(Kind::DropDegenerateFaces, dropped[1], None);
+    record(Kind::DropDuplicateFaces, dropped[2], None);
+
+    if options.split_nonmanifold {
+        let (edges, vertices) = work.split_nonmanifold(options);
+        record(Kind::SplitNonManifoldEdges, edges, None);
+        record(Kind::SplitNonManifoldVertices, vertices, None);
+    }
+    if options.orient_faces || options.flip_inside_out {
+        let (flipped, non_orientable) = work.orient(options.orient_faces);
+        record(Kind::OrientFaces, flipped, None);
+        if non_orientable > 0 {
+            not_repairable.push(format!(
+                "{non_orientable} non-orientable component{} left as is",
+                plural(non_orientable)
+            ));
+        }
+    }
+    if options.flip_inside_out {
+        let (shells, faces) = work.flip_inside_out(options);
+        record(
+            Kind::FlipInsideOutShells,
+            shells,
+            (shells > 0).then(|| format!("{faces} faces")),
+        );
+    }
+    if options.fill_holes {
+        let fill = work.fill_holes(options.max_hole_edges);
+        record(
+            Kind::FillHoles,
+            fill.holes,
+            (fill.holes > 0).then(|| format!("{} faces", fill.faces)),
+        );
+        if fill.too_large > 0 {
+            not_repairable.push(format!(
+                "{} hole{} over {} edges left open",
+                fill.too_large,
+                plural(fill.too_large),
+                options.max_hole_edges
+            ));
+        }
+        if fill.blocked > 0 {
+            not_repairable.push(format!(
+                "{} hole{} left open: filling would overlap existing edges",
+                fill.blocked,
+                plural(fill.blocked)
+            ));
+        }
+    }
+
+    let mut used_vertices = vec![!options.drop_unreferenced_vertices; work.vertex_count()];
+    for t in &work.triangles {
+        for c in &t.corners {
+            used_vertices[c.vertex as usize] = true;
+        }
+    }
+    let unused = used_vertices.iter().filter(|&&u| !u).count();
+    record(Kind::DropUnreferencedVertices, unused, None);
+
     Plan {
-        triangles: mesh
+        triangles: work.triangles,
+        new_vertices: work.new_vertices,
+        used_vertices,
+        done,
+        not_repairable,
+    }
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
+    }
+}
+
+/// The mesh being repaired: triangles over input and new vertices, and the welded vertex of each.
+struct Work<'a> {
+    mesh: &'a Mesh,
+    triangles: Vec<Triangle>,
+    new_vertices: Vec<NewVertex>,
+    /// Welded vertex of every input and new vertex (`INVALID` for NaN/infinite ones).
+    welded: Vec<u32>,
+    /// Positions of the welded vertices.
+    points: Vec<[f64; 3]>,
+}
+
+impl<'a> Work<'a> {
+    fn new(mesh: &'a Mesh, options: &Options) -> Work<'a> {
+        let w = weld(&mesh.positions, options.weld_tolerance);
+        let triangles = mesh
             .triangles
             .iter()
             .enumerate()
@@ -197,8 +302,502 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
                 near: i as u32,
                 flipped: false,
             })
-            .collect(),
-        used_vertices: vec![true; mesh.positions.len()],
-        ..Plan::default()
+            .collect();
+        Work {
+            mesh,
+            triangles,
+            new_vertices: Vec::new(),
+            welded: w.map,
+            points: w.positions,
+        }
     }
+
+    fn vertex_count(&self) -> usize {
+        self.mesh.positions.len() + self.new_vertices.len()
+    }
+
+    fn welded_of(&self, t: &Triangle) -> [u32; 3] {
+        t.corners.map(|c| {
+            self.welded
+                .get(c.vertex as usize)
+                .copied()
+                .unwrap_or(INVALID)
+        })
+    }
+
+    /// Whether a triangle can be in a Corner Table (three distinct valid welded vertices).
+    fn in_table(w: &[u32; 3]) -> bool {
+        !w.contains(&INVALID) && w[0] != w[1] && w[1] != w[2] && w[0] != w[2]
+    }
+
+    /// Drops faces with invalid vertices, degenerate faces and later copies of duplicate faces (as
+    /// the options allow): counts `[invalid, degenerate, duplicate]`.
+    fn drop_faces(&mut self, options: &Options) -> [usize; 3] {
+        let mut counts = [0; 3];
+        let mut seen: FxHashMap<[u32; 3], ()> = FxHashMap::default();
+        let welded = &self.welded;
+        self.triangles.retain(|t| {
+            let w = t
+                .corners
+                .map(|c| welded.get(c.vertex as usize).copied().unwrap_or(INVALID));
+            if w.contains(&INVALID) {
+                counts[0] += usize::from(options.drop_degenerate_faces);
+                return !options.drop_degenerate_faces;
+            }
+            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+                counts[1] += usize::from(options.drop_degenerate_faces);
+                return !options.drop_degenerate_faces;
+            }
+            let mut key = w;
+            key.sort_unstable();
+            if seen.insert(key, ()).is_some() {
+                counts[2] += usize::from(options.drop_duplicate_faces);
+                return !options.drop_duplicate_faces;
+            }
+            true
+        });
+        counts
+    }
+
+    /// The table of the triangles that can be in one, and their indices in `self.triangles`.
+    fn table(&self) -> (CornerTable, Vec<u32>) {
+        let mut tris = Vec::with_capacity(self.triangles.len());
+        let mut index = Vec::with_capacity(self.triangles.len());
+        for (i, t) in self.triangles.iter().enumerate() {
+            let w = self.welded_of(t);
+            if Self::in_table(&w) {
+                tris.push(w);
+                index.push(i as u32);
+            }
+        }
+        (CornerTable::from_triangles(tris, self.points.len()), index)
+    }
+
+    /// Splits non-manifold edges and vertices: each non-manifold edge keeps the two faces that
+    /// traverse it in opposite directions (or its first two) and the others are cut loose; then every
+    /// vertex whose faces form several fans gets a copy per extra fan. Repeats while cutting exposes
+    /// more (at most a few rounds). Returns `(edges, vertices)` split.
+    fn split_nonmanifold(&mut self, options: &Options) -> (usize, usize) {
+        let (mut edges, mut vertices) = (0, 0);
+        let nudge = self.nudge_distance(options.weld_tolerance);
+        for _round in 0..4 {
+            let (table, index) = self.table();
+            let mut opposite = table.opposites().to_vec();
+            let mut cut = 0;
+            for corners in table.nonmanifold_edges() {
+                cut += 1;
+                let pair = corners
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(i, &a)| corners[i + 1..].iter().map(move |&b| (a, b)))
+                    .find(|&(a, b)| table.v(CornerTable::n(a)) == table.v(CornerTable::p(b)))
+                    .unwrap_or((corners[0], corners[1]));
+                for &c in corners {
+                    opposite[c as usize] = c;
+                }
+                opposite[pair.0 as usize] = pair.1;
+                opposite[pair.1 as usize] = pair.0;
+            }
+            let split = self.split_fans(&table, &index, &opposite, nudge);
+            if cut == 0 && split == 0 {
+                break;
+            }
+            edges += cut;
+            vertices += split;
+        }
+        (edges, vertices)
+    }
+
+    /// How far a vertex copy moves into its fan: beyond the weld tolerance and beyond the rounding of
+    /// a 32-bit float coordinate (most formats store f32).
+    fn nudge_distance(&self, tolerance: f64) -> f64 {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.points {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let diagonal = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+        let magnitude = (0..3)
+            .map(|k| lo[k].abs().max(hi[k].abs()))
+            .fold(0.0, f64::max);
+        (3.0 * tolerance)
+            .max(1e-5 * (diagonal + magnitude))
+            .max(f64::MIN_POSITIVE)
+    }
+
+    /// Walks the fans of every vertex over `opposite` (the table's `O` with cut edges as borders);
+    /// the corners of every fan after a vertex's first get new vertices. Returns the number of new
+    /// welded vertices.
+    fn split_fans(
+        &mut self,
+        table: &CornerTable,
+        index: &[u32],
+        opposite: &[u32],
+        nudge: f64,
+    ) -> usize {
+        let nc = table.corner_count();
+        let mut visited = vec![false; nc];
+        let mut fans_at = vec![0u32; table.vertex_count()];
+        let mut split = 0;
+        let mut fan = Vec::new();
+        for start in 0..nc as u32 {
+            if visited[start as usize] {
+                continue;
+            }
+            let v = table.v(start);
+            fan.clear();
+            fan.push(start);
+            visited[start as usize] = true;
+            for first_exit in [CornerTable::p(start), CornerTable::n(start)] {
+                let mut exit = first_exit;
+                loop {
+                    let o = opposite[exit as usize];
+                    if o == exit || o == NON_MANIFOLD {
+                        break;
+                    }
+                    let (d, next) = if table.v(CornerTable::n(o)) == v {
+                        (CornerTable::n(o), CornerTable::p(o))
+                    } else {
+                        (CornerTable::p(o), CornerTable::n(o))
+                    };
+                    if visited[d as usize] {
+                        break;
+                    }
+                    visited[d as usize] = true;
+                    fan.push(d);
+                    exit = next;
+                }
+                // After a closed fan the other way stops at once: its first step is visited.
+            }
+            fans_at[v as usize] += 1;
+            if fans_at[v as usize] > 1 {
+                self.detach_fan(table, index, &fan, nudge);
+                split += 1;
+            }
+        }
+        split
+    }
+
+    /// Gives the corners of one fan a new welded vertex, a hair inside the fan: one new vertex per
+    /// distinct input vertex among them (each keeps its own attributes).
+    fn detach_fan(&mut self, table: &CornerTable, index: &[u32], fan: &[u32], nudge: f64) {
+        let v = table.v(fan[0]) as usize;
+        let origin = self.points[v];
+        let mut centre = [0.0; 3];
+        for &c in fan {
+            for k in [CornerTable::n(c), CornerTable::p(c)] {
+                let p = self.points[table.v(k) as usize];
+                for i in 0..3 {
+                    centre[i] += p[i] / (2 * fan.len()) as f64;
+                }
+            }
+        }
+        let to_centre = [0, 1, 2].map(|i| centre[i] - origin[i]);
+        let length = to_centre.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let step = if length > 0.0 {
+            nudge.min(0.25 * length) / length
+        } else {
+            0.0
+        };
+        let position = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
+        let welded = self.points.len() as u32;
+        self.points.push(position);
+        let mut copies: Vec<(u32, u32)> = Vec::new();
+        for &c in fan {
+            let t = &mut self.triangles[index[CornerTable::t(c) as usize] as usize];
+            let corner = &mut t.corners[(c % 3) as usize];
+            let copy = match copies.iter().find(|(old, _)| *old == corner.vertex) {
+                Some(&(_, new)) => new,
+                None => {
+                    let new = (self.mesh.positions.len() + self.new_vertices.len()) as u32;
+                    let copy_of =
+                        match (corner.vertex as usize).checked_sub(self.mesh.positions.len()) {
+                            Some(i) => self.new_vertices[i].copy_of,
+                            None => corner.vertex,
+                        };
+                    self.new_vertices.push(NewVertex { copy_of, position });
+                    self.welded.push(welded);
+                    copies.push((corner.vertex, new));
+                    new
+                }
+            };
+            corner.vertex = copy;
+        }
+    }
+
+    /// Orients every orientable component consistently, flipping the smaller side (when `flip` is
+    /// false only counts). Returns `(faces flipped, non-orientable components)`.
+    fn orient(&mut self, flip: bool) -> (usize, usize) {
+        let (table, index) = self.table();
+        let nt = table.triangle_count();
+        let mut parity: Vec<Option<bool>> = vec![None; nt];
+        let mut flipped = 0;
+        let mut non_orientable = 0;
+        let mut stack = Vec::new();
+        let mut members = Vec::new();
+        for seed in 0..nt {
+            if parity[seed].is_some() {
+                continue;
+            }
+            parity[seed] = Some(false);
+            stack.push(seed as u32);
+            members.clear();
+            let mut orientable = true;
+            while let Some(t) = stack.pop() {
+                members.push(t);
+                let mine = parity[t as usize].unwrap_or(false);
+                for c in 3 * t..3 * t + 3 {
+                    let Some(b) = table.opposite(c) else { continue };
+                    let u = CornerTable::t(b) as usize;
+                    let want = mine ^ !table.is_consistent(c);
+                    match parity[u] {
+                        None => {
+                            parity[u] = Some(want);
+                            stack.push(u as u32);
+                        }
+                        Some(p) => orientable &= p == want,
+                    }
+                }
+            }
+            if !orientable {
+                non_orientable += 1;
+                continue;
+            }
+            let odd = members
+                .iter()
+                .filter(|&&t| parity[t as usize] == Some(true))
+                .count();
+            let flip_odd = 2 * odd <= members.len();
+            let count = if flip_odd { odd } else { members.len() - odd };
+            if flip && count > 0 {
+                for &t in &members {
+                    if parity[t as usize] == Some(flip_odd) {
+                        self.flip(index[t as usize] as usize);
+                    }
+                }
+                flipped += count;
+            }
+        }
+        (flipped, non_orientable)
+    }
+
+    fn flip(&mut self, t: usize) {
+        let tri = &mut self.triangles[t];
+        tri.corners.swap(1, 2);
+        tri.flipped = !tri.flipped;
+    }
+
+    /// Flips whole shells whose volume sign is wrong for their nesting depth: `(shells, faces)`.
+    fn flip_inside_out(&mut self, options: &Options) -> (usize, usize) {
+        let current = self.current_mesh();
+        let analysis = analyse(
+            &current,
+            &crate::topology::Options {
+                weld_tolerance: options.weld_tolerance,
+            },
+        );
+        let inside_out: Vec<usize> = analysis
+            .shells
+            .iter()
+            .filter(|s| s.inside_out)
+            .map(|s| s.component)
+            .collect();
+        if inside_out.is_empty() {
+            return (0, 0);
+        }
+        // Components in the analysis' numbering: by lowest face, faces linked through any edge.
+        let (table, index) = self.table();
+        let component = components(&table);
+        let mut faces = 0;
+        for (t, &comp) in component.iter().enumerate() {
+            if inside_out.binary_search(&(comp as usize)).is_ok() {
+                self.flip(index[t] as usize);
+                faces += 1;
+            }
+        }
+        (inside_out.len(), faces)
+    }
+
+    /// The current triangles over welded vertices, as a mesh to analyse.
+    fn current_mesh(&self) -> Mesh {
+        Mesh::new(
+            self.points.clone(),
+            self.triangles.iter().map(|t| self.welded_of(t)).collect(),
+        )
+    }
+
+    /// Fills border loops of at most `max_edges` edges.
+    fn fill_holes(&mut self, max_edges: usize) -> Fill {
+        let mut fill = Fill::default();
+        let (table, index) = self.table();
+        let border: Vec<u32> = (0..table.corner_count() as u32)
+            .filter(|&c| table.is_border(c))
+            .collect();
+        if border.is_empty() {
+            return fill;
+        }
+        // Border edges run from v(n(c)) to v(p(c)) in their face's winding; at a manifold border
+        // vertex exactly one starts.
+        let mut starting: FxHashMap<u32, u32> = FxHashMap::default();
+        for &c in &border {
+            starting.entry(table.v(CornerTable::n(c))).or_insert(c);
+        }
+        let mut edges: FxHashMap<(u32, u32), ()> = FxHashMap::default();
+        for c in 0..table.corner_count() as u32 {
+            let (a, b) = (table.v(CornerTable::n(c)), table.v(CornerTable::p(c)));
+            edges.insert((a.min(b), a.max(b)), ());
+        }
+        let sorted = |t: [u32; 3]| {
+            let mut t = t;
+            t.sort_unstable();
+            t
+        };
+        let faces: FxHashMap<[u32; 3], ()> =
+            table.triangles().iter().map(|&t| (sorted(t), ())).collect();
+        let mut traced = vec![false; table.corner_count()];
+        let mut new_triangles = Vec::new();
+        for &first in &border {
+            if traced[first as usize] {
+                continue;
+            }
+            let mut loop_corners = Vec::new();
+            let mut c = first;
+            let closed = loop {
+                traced[c as usize] = true;
+                loop_corners.push(c);
+                match starting.get(&table.v(CornerTable::p(c))) {
+                    Some(&next) if next == first => break true,
+                    Some(&next)
+                        if !traced[next as usize] && loop_corners.len() <= table.corner_count() =>
+                    {
+                        c = next
+                    }
+                    _ => break false,
+                }
+            };
+            if !closed {
+                fill.blocked += 1;
+                continue;
+            }
+            if loop_corners.len() > max_edges {
+                fill.too_large += 1;
+                continue;
+            }
+            // The fill runs the loop backwards; its corner at each loop vertex carries the attributes
+            // of the bordering face's corner there (n(c) sits at the start of c's border edge).
+            let ring: Vec<u32> = loop_corners
+                .iter()
+                .rev()
+                .map(|&c| table.v(CornerTable::n(c)))
+                .collect();
+            let at: FxHashMap<u32, Corner> = loop_corners
+                .iter()
+                .map(|&c| {
+                    let k = CornerTable::n(c);
+                    let t = &self.triangles[index[CornerTable::t(k) as usize] as usize];
+                    (table.v(k), t.corners[(k % 3) as usize])
+                })
+                .collect();
+            let mut tris = Vec::new();
+            triangulate(&ring, &self.points, &mut tris);
+            // A diagonal that is already an edge, or a face that is already there, would make the
+            // surface non-manifold: such a hole is left open.
+            let overlaps = tris.iter().any(|t| {
+                faces.contains_key(&sorted(*t))
+                    || (0..3).any(|k| {
+                        let (a, b) = (t[k], t[(k + 1) % 3]);
+                        let diagonal = !ring_neighbours(&ring, a, b);
+                        diagonal && edges.contains_key(&(a.min(b), a.max(b)))
+                    })
+            });
+            if overlaps || tris.len() + 2 != ring.len() || ring.len() < 3 {
+                fill.blocked += 1;
+                continue;
+            }
+            for t in &tris {
+                for k in 0..3 {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    edges.insert((a.min(b), a.max(b)), ());
+                }
+            }
+            let near = index[CornerTable::t(first) as usize];
+            let near = self.triangles[near as usize]
+                .source
+                .unwrap_or(self.triangles[near as usize].near);
+            for t in tris {
+                new_triangles.push(Triangle {
+                    corners: t.map(|v| at[&v]),
+                    source: None,
+                    near,
+                    flipped: false,
+                });
+            }
+            fill.holes += 1;
+            fill.faces += ring.len() - 2;
+        }
+        self.triangles.extend(new_triangles);
+        fill
+    }
+}
+
+/// Whether `a` and `b` are neighbours on the ring (a loop edge, not a diagonal).
+fn ring_neighbours(ring: &[u32], a: u32, b: u32) -> bool {
+    let n = ring.len();
+    (0..n).any(|i| {
+        let (x, y) = (ring[i], ring[(i + 1) % n]);
+        (x == a && y == b) || (x == b && y == a)
+    })
+}
+
+#[derive(Debug, Default)]
+struct Fill {
+    holes: usize,
+    faces: usize,
+    too_large: usize,
+    blocked: usize,
+}
+
+/// Component of every table triangle, numbered by lowest triangle, linked through edges of any
+/// valence (the analysis' definition).
+fn components(table: &CornerTable) -> Vec<u32> {
+    let nt = table.triangle_count();
+    let mut parent: Vec<u32> = (0..nt as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
+        }
+        x
+    }
+    let mut join = |a: u32, b: u32| {
+        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+        if ra != rb {
+            parent[ra.max(rb) as usize] = ra.min(rb);
+        }
+    };
+    for c in 0..table.corner_count() as u32 {
+        if let Some(b) = table.opposite(c) {
+            join(CornerTable::t(c), CornerTable::t(b));
+        }
+    }
+    for corners in table.nonmanifold_edges() {
+        for &c in &corners[1..] {
+            join(CornerTable::t(corners[0]), CornerTable::t(c));
+        }
+    }
+    let mut number = vec![u32::MAX; nt];
+    let mut next = 0;
+    (0..nt as u32)
+        .map(|t| {
+            let root = find(&mut parent, t) as usize;
+            if number[root] == u32::MAX {
+                number[root] = next;
+                next += 1;
+            }
+            number[root]
+        })
+        .collect()
 }

@@ -11,7 +11,7 @@ mod gltf;
 mod obj;
 mod off;
 mod ply;
-mod polygon;
+pub(crate) mod polygon;
 mod stl;
 
 /// The file formats meshvet reads.

@@ -1,0 +1,278 @@
+//! Repair plans (SPEC 10) on hand-built meshes. Every test analyses the repaired mesh, checks the
+//! repaired defects are gone with numbers derived by hand, and repairs the result again: a second
+//! repair must change nothing.
+
+mod shapes;
+
+use meshvet::repair::{plan, Kind, Options, Plan};
+use meshvet::{analyse, Analysis, Mesh, Role};
+
+fn repaired(mesh: &Mesh) -> (Plan, Mesh, Analysis) {
+    let p = plan(mesh, &Options::default());
+    let out = p.apply(mesh);
+    let again = plan(&out, &Options::default());
+    assert!(!again.changes(), "a second repair changed {:?}", again.done);
+    let a = analyse(&out, &Default::default());
+    (p, out, a)
+}
+
+fn count(p: &Plan, kind: Kind) -> usize {
+    p.done
+        .iter()
+        .find(|(k, ..)| *k == kind)
+        .map_or(0, |(_, n, _)| *n)
+}
+
+fn assert_close(a: f64, b: f64) {
+    assert!((a - b).abs() < 1e-9, "{a} != {b}");
+}
+
+/// A clean cube needs nothing: the plan changes nothing and keeps every face in order.
+#[test]
+fn clean_mesh_is_left_alone() {
+    let cube = shapes::cube();
+    let p = plan(&cube, &Options::default());
+    assert!(!p.changes());
+    assert_eq!(p.summary(), "");
+    assert_eq!(
+        p.apply(&cube),
+        Mesh::new(cube.positions.clone(), cube.triangles.clone())
+    );
+}
+
+/// Unit cube with its top two triangles removed and one side triangle flipped: the flipped face is
+/// turned back (1 face, the smaller side), and the square hole (4 border edges) is filled with 2
+/// triangles. Result: one closed, oriented, outward shell of volume 1 (V 8, E 18, F 12).
+#[test]
+fn open_box_with_a_flipped_face_becomes_a_closed_outward_cube() {
+    let cube = shapes::cube();
+    let top = top_faces(&cube);
+    let mut mesh = cube.clone();
+    mesh.triangles = (0..12)
+        .filter(|t| !top.contains(t))
+        .map(|t| cube.triangles[t])
+        .collect();
+    mesh.triangles[0].swap(1, 2);
+    let (p, out, a) = repaired(&mesh);
+    assert_eq!(count(&p, Kind::OrientFaces), 1);
+    assert_eq!(count(&p, Kind::FillHoles), 1);
+    assert_eq!(p.summary(), "orient-faces:1;fill-holes:1(2 faces)");
+    assert_eq!(out.triangles.len(), 12);
+    assert_eq!(
+        (a.edges, a.border_edges, a.holes(), a.inconsistent_edges),
+        (18, 0, 0, 0)
+    );
+    assert_eq!(a.shells.len(), 1);
+    assert_close(a.shells[0].volume.unwrap(), 1.0);
+    // Fills take their attributes from corners of the faces around the hole.
+    let fills: Vec<_> = p.triangles.iter().filter(|t| t.source.is_none()).collect();
+    assert_eq!(fills.len(), 2);
+    for t in fills {
+        for c in t.corners {
+            assert_eq!(
+                mesh.triangles[c.from as usize / 3][c.from as usize % 3],
+                c.vertex
+            );
+        }
+    }
+}
+
+/// The two faces of the cube with all four vertices at z = 1.
+fn top_faces(cube: &Mesh) -> Vec<usize> {
+    (0..12)
+        .filter(|&t| {
+            cube.triangles[t]
+                .iter()
+                .all(|&v| cube.positions[v as usize][2] == 1.0)
+        })
+        .collect()
+}
+
+/// An inside-out cube (every face flipped): orientation is already consistent, so no face is
+/// "oriented"; the whole shell (12 faces) is flipped and encloses +1.
+#[test]
+fn inside_out_cube_is_turned_outward() {
+    let mesh = shapes::flipped(&shapes::cube());
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(count(&p, Kind::OrientFaces), 0);
+    assert_eq!(p.summary(), "flip-inside-out-shells:1(12 faces)");
+    assert!(p.triangles.iter().all(|t| t.flipped));
+    assert_eq!(a.inside_out_shells(), 0);
+    assert_close(a.shells[0].volume.unwrap(), 1.0);
+}
+
+/// A 2x2x2 cube with a 1x1x1 cavity whose faces point out (into the material): the cavity shell is
+/// flipped to face into the void, and the volume stays 8 - 1 = 7 (trimesh's fix makes it 9).
+#[test]
+fn cavity_facing_out_is_turned_into_the_void() {
+    let outer = shapes::cuboid([0.0; 3], [2.0; 3]);
+    let inner = shapes::cuboid([0.5; 3], [1.5; 3]);
+    let mesh = shapes::merge(&[outer, inner]);
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(p.summary(), "flip-inside-out-shells:1(12 faces)");
+    let roles: Vec<Role> = a.shells.iter().map(|s| s.role).collect();
+    assert_eq!(roles, vec![Role::Solid, Role::Cavity]);
+    assert_eq!(a.inside_out_shells(), 0);
+    assert_close(a.shells[1].volume.unwrap(), -1.0);
+    assert_close(a.volume().unwrap(), 7.0);
+}
+
+/// Two unit cubes sharing the edge x = y = 1: that edge has 4 faces. It keeps a consistent pair and
+/// the other cube's faces are cut loose; its two endpoints then have two fans each (one per cube),
+/// so 2 vertices are split. Result: two separate closed cubes (2 shells, V 16, E 36, F 24), no
+/// non-manifold edge or vertex.
+#[test]
+fn cubes_sharing_an_edge_are_split_into_two_shells() {
+    let a = shapes::cuboid([0.0; 3], [1.0; 3]);
+    let b = shapes::cuboid([1.0, 1.0, 0.0], [2.0, 2.0, 1.0]);
+    let mesh = shapes::merge(&[a, b]);
+    let before = analyse(&mesh, &Default::default());
+    assert_eq!((before.nonmanifold_edges, before.shells.len()), (1, 0));
+    let (p, out, a) = repaired(&mesh);
+    assert_eq!(count(&p, Kind::SplitNonManifoldEdges), 1);
+    assert_eq!(count(&p, Kind::SplitNonManifoldVertices), 2);
+    assert_eq!((a.nonmanifold_edges, a.nonmanifold_vertices), (0, 0));
+    assert_eq!(a.shells.len(), 2);
+    assert_eq!((a.welded_vertices, a.edges, a.faces), (16, 36, 24));
+    assert_eq!(out.positions.len(), 16);
+    // The copies moved by about 1e-5 of the model's size, so the volume moves by as little.
+    assert!((a.volume().unwrap() - 2.0).abs() < 1e-4);
+    // Each copy is a copy of the shared vertex it replaces, moved a hair (under 1e-3 here).
+    assert_eq!(p.new_vertices.len(), 2);
+    for v in &p.new_vertices {
+        let original = mesh.positions[v.copy_of as usize];
+        let d: f64 = (0..3)
+            .map(|k| (v.position[k] - original[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(d > 0.0 && d < 1e-3, "moved {d}");
+    }
+}
+
+/// Bowtie: two triangles touching at vertex 0. The vertex is split (one copy); each triangle is then
+/// alone, and filling its 3-edge hole would only repeat the face, so both holes are left open and
+/// reported.
+#[test]
+fn bowtie_vertex_is_split_and_lone_triangles_stay_open() {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [-1.0, -1.0, 0.0],
+    ];
+    let mesh = Mesh::new(positions, vec![[0, 1, 2], [0, 3, 4]]);
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(p.summary(), "split-non-manifold-vertices:1");
+    assert_eq!(a.nonmanifold_vertices, 0);
+    assert_eq!(a.components.len(), 2);
+    assert_eq!(
+        p.not_repairable,
+        vec!["2 holes left open: filling would overlap existing edges"]
+    );
+}
+
+/// Degenerate (repeated index), duplicate (reversed copy), NaN vertex face and an unreferenced vertex
+/// on a cube: all dropped; the cube is intact (V 8, E 18, F 12) and nothing else changes.
+#[test]
+fn bad_faces_and_unreferenced_vertices_are_dropped() {
+    let mut mesh = shapes::cube();
+    let t0 = mesh.triangles[0];
+    mesh.positions.push([f64::NAN, 0.0, 0.0]); // 8: invalid
+    mesh.positions.push([9.0, 9.0, 9.0]); // 9: unreferenced
+    mesh.triangles.push([0, 0, 1]);
+    mesh.triangles.push([t0[0], t0[2], t0[1]]);
+    mesh.triangles.push([0, 1, 8]);
+    let (p, out, a) = repaired(&mesh);
+    assert_eq!(
+        p.summary(),
+        "drop-invalid-faces:1;drop-degenerate-faces:1;drop-duplicate-faces:1;drop-unreferenced-vertices:2"
+    );
+    assert_eq!(out.positions.len(), 8);
+    assert_eq!(
+        (a.welded_vertices, a.edges, a.faces, a.shells.len()),
+        (8, 18, 12, 1)
+    );
+}
+
+/// Moebius strip: not orientable, reported and left as is; its single border loop cannot be traced
+/// by direction, so it stays open too.
+#[test]
+fn moebius_strip_is_reported_not_repaired() {
+    let mesh = shapes::moebius(10);
+    let (p, _, a) = repaired(&mesh);
+    assert!(
+        p.not_repairable
+            .iter()
+            .any(|m| m.contains("1 non-orientable component")),
+        "{:?}",
+        p.not_repairable
+    );
+    assert!(!a.orientable());
+    assert_eq!(count(&p, Kind::OrientFaces), 0);
+}
+
+/// An open tube of 12 vertices around and 2 rings of quads has two holes of 12 edges each: with a
+/// limit of 10 both stay open and are reported; with the default limit both are capped (10 faces
+/// each), giving a closed genus-0 shell wound outward.
+#[test]
+fn holes_over_the_limit_stay_open() {
+    let mesh = shapes::tube(12, 2);
+    let small = Options {
+        max_hole_edges: 10,
+        ..Options::default()
+    };
+    let p = plan(&mesh, &small);
+    assert_eq!(p.not_repairable, vec!["2 holes over 10 edges left open"]);
+    assert!(!p.changes());
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(p.summary(), "fill-holes:2(20 faces)");
+    assert_eq!((a.holes(), a.shells.len(), a.genus()), (0, 1, Some(0)));
+    assert!(a.shells[0].volume.unwrap() > 0.0);
+}
+
+/// A flat grid's corner quads already join two border vertices by a diagonal, so a fill of its
+/// outline would repeat that edge (and lie on the grid itself): it is refused, not forced.
+#[test]
+fn fills_that_would_overlap_are_refused() {
+    let p = plan(&shapes::grid(6, 4), &Options::default());
+    assert_eq!(
+        p.not_repairable,
+        vec!["1 hole left open: filling would overlap existing edges"]
+    );
+}
+
+/// Every repair can be switched off: with all off, the plan is the input.
+#[test]
+fn repairs_switched_off_change_nothing() {
+    let mesh = shapes::flipped(&shapes::cube());
+    let off = Options {
+        drop_degenerate_faces: false,
+        drop_duplicate_faces: false,
+        split_nonmanifold: false,
+        orient_faces: false,
+        flip_inside_out: false,
+        fill_holes: false,
+        drop_unreferenced_vertices: false,
+        ..Options::default()
+    };
+    let p = plan(&mesh, &off);
+    assert!(!p.changes());
+    assert_eq!(p.apply(&mesh).triangles, mesh.triangles);
+}
+
+/// A shuffled torus with 10% of its faces flipped: orientation puts every face back (genus 1, closed,
+/// oriented) by flipping exactly the flipped ones (the smaller side).
+#[test]
+fn torus_with_flipped_faces_is_reoriented() {
+    let mut mesh = shapes::torus(20, 10, Some(7));
+    let flipped: Vec<usize> = (0..mesh.triangles.len()).filter(|t| t % 10 == 3).collect();
+    for &t in &flipped {
+        mesh.triangles[t].swap(1, 2);
+    }
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(p.summary(), format!("orient-faces:{}", flipped.len()));
+    assert!(a.oriented());
+    assert_eq!(a.genus(), Some(1));
+    assert_eq!(a.inside_out_shells(), 0);
+}
