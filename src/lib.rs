@@ -6,6 +6,7 @@ pub mod config;
 pub mod corner_table;
 pub mod formats;
 pub mod mesh;
+pub mod picture;
 pub mod repair;
 pub mod report;
 pub mod rules;

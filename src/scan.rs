@@ -17,9 +17,10 @@ use rayon::prelude::*;
 
 use crate::config::Settings;
 use crate::formats::{self, Format, ReadContext};
+use crate::picture;
 use crate::report::Row;
 use crate::rules::{self, Finding, MeshFacts, Status};
-use crate::topology::analyse;
+use crate::topology::{analyse, places, Shell};
 use crate::walk::Source;
 
 /// Files per chunk for each worker thread. Rows are small, so a chunk costs little memory; a large
@@ -34,6 +35,25 @@ pub const THREAD_NAME: &str = "meshvet-scan";
 pub struct Outcome {
     pub row: Row,
     pub findings: Vec<Finding>,
+    /// What a detailed report shows beyond the row; only when [`Extras::details`] asked for it and
+    /// the mesh has triangles.
+    pub detail: Option<Box<Detail>>,
+}
+
+/// What to compute beyond the report rows. The default (nothing) is what a plain scan pays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Extras {
+    /// Fill [`Outcome::detail`]: the per-shell table and a picture (for the HTML report).
+    pub details: bool,
+}
+
+/// The per-shell table and the drawing of one mesh, made while it is in memory.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Detail {
+    pub shells: Vec<Shell>,
+    /// An SVG drawing with the problem places marked (see `picture.rs`); `None` when drawing
+    /// failed or there was nothing to draw.
+    pub picture: Option<String>,
 }
 
 /// Scans `sources` on a pool of `settings.jobs` threads (0: one per core). `progress` is called from
@@ -42,6 +62,20 @@ pub struct Outcome {
 pub fn scan<E>(
     sources: &[Source],
     settings: &Settings,
+    progress: &(dyn Fn(usize) + Sync),
+    emit: impl FnMut(Outcome) -> Result<(), E>,
+) -> Result<(), E>
+where
+    E: From<std::io::Error>,
+{
+    scan_with(sources, settings, Extras::default(), progress, emit)
+}
+
+/// [`scan`], computing `extras` too.
+pub fn scan_with<E>(
+    sources: &[Source],
+    settings: &Settings,
+    extras: Extras,
     progress: &(dyn Fn(usize) + Sync),
     mut emit: impl FnMut(Outcome) -> Result<(), E>,
 ) -> Result<(), E>
@@ -59,7 +93,7 @@ where
             files
                 .par_iter()
                 .map(|source| {
-                    let outcomes = scan_file(source, settings);
+                    let outcomes = scan_file_with(source, settings, extras);
                     progress(outcomes.len());
                     outcomes
                 })
@@ -74,11 +108,17 @@ where
 
 /// Reads and judges one file: its rows, sorted by mesh. Never panics (a panic inside is caught).
 pub fn scan_file(source: &Source, settings: &Settings) -> Vec<Outcome> {
+    scan_file_with(source, settings, Extras::default())
+}
+
+/// [`scan_file`], computing `extras` too.
+pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> Vec<Outcome> {
     let start = Instant::now();
     let error = |message: &str, start: Instant| {
         vec![Outcome {
             row: Row::error(&source.display, source.format, message, millis(start)),
             findings: Vec::new(),
+            detail: None,
         }]
     };
     if let Some(message) = &source.error {
@@ -90,7 +130,7 @@ pub fn scan_file(source: &Source, settings: &Settings) -> Vec<Outcome> {
             start,
         );
     };
-    match caught(|| judge(source, format, settings)) {
+    match caught(|| judge(source, format, settings, extras)) {
         Ok(Ok(mut outcomes)) => {
             outcomes.sort_by(|a, b| a.row.mesh.cmp(&b.row.mesh));
             outcomes
@@ -114,7 +154,12 @@ fn caught<T>(work: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
-fn judge(source: &Source, format: Format, settings: &Settings) -> Result<Vec<Outcome>, String> {
+fn judge(
+    source: &Source,
+    format: Format,
+    settings: &Settings,
+    extras: Extras,
+) -> Result<Vec<Outcome>, String> {
     let start = Instant::now();
     let context = ReadContext {
         root: source.root.clone(),
@@ -129,6 +174,7 @@ fn judge(source: &Source, format: Format, settings: &Settings) -> Result<Vec<Out
         return Ok(vec![Outcome {
             row,
             findings: Vec::new(),
+            detail: None,
         }]);
     }
     let options = settings.options();
@@ -158,7 +204,20 @@ fn judge(source: &Source, format: Format, settings: &Settings) -> Result<Vec<Out
                 mesh.mirrored_instances,
                 read_millis + millis(start),
             );
-            Outcome { row, findings }
+            // A drawing that panics costs the picture, never the row.
+            let detail = (extras.details && !mesh.triangles.is_empty()).then(|| {
+                Box::new(Detail {
+                    shells: analysis.shells.clone(),
+                    picture: caught(|| picture::draw(&places(mesh, &options, &analysis)))
+                        .ok()
+                        .flatten(),
+                })
+            });
+            Outcome {
+                row,
+                findings,
+                detail,
+            }
         })
         .collect();
     Ok(outcomes)

@@ -1,0 +1,485 @@
+//! A small SVG drawing of a mesh for the HTML report, made while the mesh is in memory: two fixed
+//! orthographic views (from the front-right-above and from the back-left-below, Y up), faces
+//! depth-sorted back to front (painter's algorithm) and flat-shaded by their normal, with the
+//! problem places of [`Places`] drawn on top.
+//!
+//! Colours: faces seen from their front are blue-grey, faces seen from behind (through a hole, or
+//! flipped) plain grey, faces of inside-out shells violet; border edges orange; non-manifold edges
+//! and vertices red.
+//!
+//! Size: a picture must stay small because a report holds thousands. A mesh of more than
+//! [`MAX_FACES`] faces is simplified by vertex clustering (a grid coarse enough to leave at most that
+//! many faces); coordinates are integers on a 240-unit square per view; consecutive faces of one
+//! shade share one `<path>`; shades are quantized to eight levels; marks are one path per colour and
+//! view, at most [`MAX_MARKS`] segments each (evenly sampled beyond). Attributes use single quotes so
+//! the SVG travels inside a JSON string without escaping. No `xmlns`: the page's HTML parser puts
+//! inline `<svg>` in the SVG namespace. A small mesh draws in 1-5 KB, a big one in at most ~60 KB.
+
+use std::fmt::Write;
+
+use rustc_hash::{FxHashMap, FxHashSet};
+
+use crate::topology::Places;
+
+/// The most faces drawn; bigger meshes are simplified.
+pub const MAX_FACES: usize = 1500;
+
+/// The most segments (or dots) drawn per mark colour and view.
+pub const MAX_MARKS: usize = 1500;
+
+/// The side of one view in SVG units, and the gap between the two.
+const SIDE: f64 = 240.0;
+const GAP: f64 = 10.0;
+const MARGIN: f64 = 10.0;
+/// Shade levels per face colour.
+const LEVELS: usize = 8;
+
+const BORDER: &str = "#e80";
+const NONMANIFOLD: &str = "#d11";
+
+/// The views: (azimuth, elevation) in degrees, Y up.
+const VIEWS: [(f64, f64); 2] = [(35.0, 25.0), (215.0, -25.0)];
+
+/// Draws `places` (from [`crate::topology::places`]); `None` when there is no face to draw.
+pub fn draw(places: &Places) -> Option<String> {
+    if places.triangles.is_empty() {
+        return None;
+    }
+    let simplified;
+    let (points, triangles, inside_out) = if places.triangles.len() > MAX_FACES {
+        simplified = simplify(&places.points, &places.triangles, &places.inside_out);
+        (&simplified.0[..], &simplified.1[..], &simplified.2[..])
+    } else {
+        (
+            &places.points[..],
+            &places.triangles[..],
+            &places.inside_out[..],
+        )
+    };
+    let width = 2.0 * SIDE + GAP;
+    let mut svg = format!(
+        "<svg viewBox='0 0 {width} {SIDE}' class='pic' data-faces='{}' data-drawn='{}'>",
+        places.triangles.len(),
+        triangles.len()
+    );
+    for (i, &(azimuth, elevation)) in VIEWS.iter().enumerate() {
+        let camera = Camera::new(azimuth, elevation);
+        let offset = i as f64 * (SIDE + GAP);
+        // Faces are stroked in their own colour so no seam shows between neighbours.
+        svg.push_str("<g fill='currentColor' stroke='currentColor' stroke-width='.6' stroke-linejoin='round'");
+        if offset > 0.0 {
+            let _ = write!(svg, " transform='translate({offset})'");
+        }
+        svg.push('>');
+        let screen = camera.fit(points, triangles);
+        draw_faces(&mut svg, &camera, &screen, points, triangles, inside_out);
+        draw_marks(&mut svg, &screen, places);
+        svg.push_str("</g>");
+    }
+    svg.push_str("</svg>");
+    Some(svg)
+}
+
+/// An orthographic camera: screen axes `right`, `up`, and `toward` the viewer.
+struct Camera {
+    right: [f64; 3],
+    up: [f64; 3],
+    toward: [f64; 3],
+    light: [f64; 3],
+}
+
+/// How a view maps world points to its integer screen square.
+struct Screen<'a> {
+    camera: &'a Camera,
+    centre: [f64; 2],
+    scale: f64,
+}
+
+impl Screen<'_> {
+    fn at(&self, p: &[f64; 3]) -> (i32, i32) {
+        let x = dot(p, &self.camera.right) - self.centre[0];
+        let y = dot(p, &self.camera.up) - self.centre[1];
+        (
+            (SIDE / 2.0 + x * self.scale).round() as i32,
+            (SIDE / 2.0 - y * self.scale).round() as i32,
+        )
+    }
+}
+
+impl Camera {
+    fn new(azimuth: f64, elevation: f64) -> Camera {
+        let (a, e) = (azimuth.to_radians(), elevation.to_radians());
+        let toward = [e.cos() * a.sin(), e.sin(), e.cos() * a.cos()];
+        let right = normalized(cross(&[0.0, 1.0, 0.0], &toward));
+        let up = cross(&toward, &right);
+        // Light from the upper left, in front of the viewer.
+        let light = normalized(add3(&[
+            scale3(&right, -0.4),
+            scale3(&up, 0.6),
+            scale3(&toward, 0.7),
+        ]));
+        Camera {
+            right,
+            up,
+            toward,
+            light,
+        }
+    }
+
+    /// The screen that fits the drawn vertices into the view with a margin.
+    fn fit<'a>(&'a self, points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Screen<'a> {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        for t in triangles {
+            for &i in t {
+                let p = &points[i as usize];
+                let s = [dot(p, &self.right), dot(p, &self.up)];
+                for k in 0..2 {
+                    lo[k] = lo[k].min(s[k]);
+                    hi[k] = hi[k].max(s[k]);
+                }
+            }
+        }
+        let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        let scale = if extent > 0.0 && extent.is_finite() {
+            (SIDE - 2.0 * MARGIN) / extent
+        } else {
+            1.0
+        };
+        Screen {
+            camera: self,
+            centre: [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])],
+            scale,
+        }
+    }
+}
+
+/// Faces back to front, consecutive faces of one colour merged into one path.
+fn draw_faces(
+    svg: &mut String,
+    camera: &Camera,
+    screen: &Screen,
+    points: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    inside_out: &[bool],
+) {
+    let mut faces: Vec<(f64, [(i32, i32); 3], u16)> = Vec::with_capacity(triangles.len());
+    for (i, t) in triangles.iter().enumerate() {
+        let [a, b, c] = t.map(|v| &points[v as usize]);
+        let n = normalized(cross(&sub(b, a), &sub(c, a)));
+        let facing = dot(&n, &camera.toward);
+        let seen = if facing >= 0.0 { n } else { scale3(&n, -1.0) };
+        let light = dot(&seen, &camera.light).clamp(0.0, 1.0);
+        let level = (light * (LEVELS - 1) as f64).round() as u16;
+        let kind = if inside_out.get(i).copied().unwrap_or(false) {
+            2
+        } else if facing >= 0.0 {
+            0
+        } else {
+            1
+        };
+        let depth = dot(a, &camera.toward) + dot(b, &camera.toward) + dot(c, &camera.toward);
+        let corners = [screen.at(a), screen.at(b), screen.at(c)];
+        let [(x0, y0), (x1, y1), (x2, y2)] = corners;
+        if (x1 - x0) * (y2 - y0) == (x2 - x0) * (y1 - y0) {
+            continue; // edge-on or smaller than a unit: nothing to see
+        }
+        faces.push((depth, corners, kind * LEVELS as u16 + level));
+    }
+    faces.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut current = u16::MAX;
+    for (_, corners, colour) in &faces {
+        if *colour != current {
+            if current != u16::MAX {
+                svg.push_str("'/>");
+            }
+            let _ = write!(svg, "<path color='{}' d='", face_colour(*colour));
+            current = *colour;
+        }
+        let [(x0, y0), (x1, y1), (x2, y2)] = corners;
+        let _ = write!(svg, "M{x0} {y0} {x1} {y1} {x2} {y2}z");
+    }
+    if current != u16::MAX {
+        svg.push_str("'/>");
+    }
+}
+
+/// `#rgb` of a face colour: kind (front, back, inside-out) and shade level.
+fn face_colour(colour: u16) -> String {
+    const BASE: [[f64; 3]; 3] = [[0.62, 0.74, 0.9], [0.66, 0.66, 0.62], [0.88, 0.5, 0.86]];
+    let base = BASE[colour as usize / LEVELS];
+    let level = (colour as usize % LEVELS) as f64 / (LEVELS - 1) as f64;
+    let brightness = 0.35 + 0.75 * level;
+    let digit = |x: f64| {
+        let d = (x * brightness * 15.0).round().clamp(0.0, 15.0) as u32;
+        char::from_digit(d, 16).expect("a hex digit")
+    };
+    format!("#{}{}{}", digit(base[0]), digit(base[1]), digit(base[2]))
+}
+
+/// Border edges, non-manifold edges and non-manifold vertices over the faces.
+fn draw_marks(svg: &mut String, screen: &Screen, places: &Places) {
+    let points = &places.points;
+    let edges = |svg: &mut String, edges: &[[u32; 2]], colour: &str, width: f64| {
+        if edges.is_empty() {
+            return;
+        }
+        let _ = write!(
+            svg,
+            "<path fill='none' stroke='{colour}' stroke-width='{width}' stroke-linecap='round' d='"
+        );
+        for e in sampled(edges, MAX_MARKS) {
+            let (x0, y0) = screen.at(&points[e[0] as usize]);
+            let (x1, y1) = screen.at(&points[e[1] as usize]);
+            let _ = write!(svg, "M{x0} {y0} {x1} {y1}");
+        }
+        svg.push_str("'/>");
+    };
+    edges(svg, &places.border_edges, BORDER, 2.0);
+    edges(svg, &places.nonmanifold_edges, NONMANIFOLD, 2.5);
+    if !places.nonmanifold_vertices.is_empty() {
+        let _ = write!(
+            svg,
+            "<path fill='none' stroke='{NONMANIFOLD}' stroke-width='7' stroke-linecap='round' d='"
+        );
+        for &v in sampled(&places.nonmanifold_vertices, MAX_MARKS) {
+            let (x, y) = screen.at(&points[v as usize]);
+            let _ = write!(svg, "M{x} {y}h0");
+        }
+        svg.push_str("'/>");
+    }
+}
+
+/// At most `max` items, evenly spread over `items`.
+fn sampled<T>(items: &[T], max: usize) -> impl Iterator<Item = &T> {
+    let step = items.len().div_ceil(max.max(1)).max(1);
+    items.iter().step_by(step)
+}
+
+/// Vertex clustering: snaps the vertices to a grid coarse enough to leave at most [`MAX_FACES`]
+/// faces, each cluster at the mean of its vertices; faces that collapse or repeat are dropped. Falls
+/// back to an even sample of the faces if even a 2-cell grid leaves too many.
+#[allow(clippy::type_complexity)]
+fn simplify(
+    points: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    inside_out: &[bool],
+) -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<bool>) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for t in triangles {
+        for &i in t {
+            for k in 0..3 {
+                lo[k] = lo[k].min(points[i as usize][k]);
+                hi[k] = hi[k].max(points[i as usize][k]);
+            }
+        }
+    }
+    let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+    let mut cells = 128.0_f64;
+    for _ in 0..12 {
+        let result = cluster(points, triangles, inside_out, lo, extent / cells);
+        if result.1.len() <= MAX_FACES {
+            return result;
+        }
+        if cells <= 2.0 {
+            break;
+        }
+        let shrink = (MAX_FACES as f64 / result.1.len() as f64).sqrt() * 0.9;
+        cells = (cells * shrink).floor().clamp(2.0, cells - 1.0);
+    }
+    let step = triangles.len().div_ceil(MAX_FACES);
+    let faces = triangles.iter().step_by(step).copied().collect();
+    let flags = inside_out.iter().step_by(step).copied().collect();
+    (points.to_vec(), faces, flags)
+}
+
+#[allow(clippy::type_complexity)]
+fn cluster(
+    points: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    inside_out: &[bool],
+    lo: [f64; 3],
+    cell: f64,
+) -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<bool>) {
+    let cell = if cell > 0.0 && cell.is_finite() {
+        cell
+    } else {
+        1.0
+    };
+    let mut id_of_cell: FxHashMap<u64, u32> = FxHashMap::default();
+    let mut id_of_point = vec![u32::MAX; points.len()];
+    let mut sums: Vec<([f64; 3], u32)> = Vec::new();
+    let mut id = |v: u32| -> u32 {
+        let slot = &mut id_of_point[v as usize];
+        if *slot == u32::MAX {
+            let p = &points[v as usize];
+            let key = (0..3).fold(0u64, |key, k| {
+                let i = ((p[k] - lo[k]) / cell).floor().clamp(0.0, 2_097_151.0) as u64;
+                key << 21 | i
+            });
+            let next = sums.len() as u32;
+            let id = *id_of_cell.entry(key).or_insert(next);
+            if id == next {
+                sums.push(([0.0; 3], 0));
+            }
+            let sum = &mut sums[id as usize];
+            for k in 0..3 {
+                sum.0[k] += p[k];
+            }
+            sum.1 += 1;
+            *slot = id;
+        }
+        *slot
+    };
+    let mut seen: FxHashSet<[u32; 3]> = FxHashSet::default();
+    let mut faces = Vec::new();
+    let mut flags = Vec::new();
+    for (i, t) in triangles.iter().enumerate() {
+        let w = t.map(&mut id);
+        if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+            continue;
+        }
+        let mut key = w;
+        key.sort_unstable();
+        if seen.insert(key) {
+            faces.push(w);
+            flags.push(inside_out.get(i).copied().unwrap_or(false));
+        }
+    }
+    let positions = sums
+        .iter()
+        .map(|(s, n)| s.map(|x| x / f64::from(*n)))
+        .collect();
+    (positions, faces, flags)
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn scale3(a: &[f64; 3], s: f64) -> [f64; 3] {
+    a.map(|x| x * s)
+}
+
+fn add3(vs: &[[f64; 3]]) -> [f64; 3] {
+    vs.iter()
+        .fold([0.0; 3], |s, v| [s[0] + v[0], s[1] + v[1], s[2] + v[2]])
+}
+
+fn normalized(a: [f64; 3]) -> [f64; 3] {
+    let n = dot(&a, &a).sqrt();
+    if n > 0.0 {
+        a.map(|x| x / n)
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::topology::{analyse, places, Options};
+    use crate::Mesh;
+
+    fn picture(mesh: &Mesh) -> Option<String> {
+        let options = Options::default();
+        draw(&places(mesh, &options, &analyse(mesh, &options)))
+    }
+
+    /// A unit cube without its top: two triangles per side, five sides.
+    fn open_box() -> Mesh {
+        let positions = (0..8)
+            .map(|i| [(i & 1) as f64, (i >> 1 & 1) as f64, (i >> 2 & 1) as f64])
+            .collect();
+        let triangles = vec![
+            [0, 2, 1],
+            [1, 2, 3], // z = 0
+            [4, 5, 6],
+            [5, 7, 6], // z = 1
+            [0, 1, 4],
+            [1, 5, 4], // y = 0
+            [0, 4, 2],
+            [2, 4, 6], // x = 0
+            [1, 3, 5],
+            [3, 7, 5], // x = 1
+        ];
+        Mesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn an_open_box_draws_faces_and_its_border() {
+        let svg = picture(&open_box()).unwrap();
+        assert!(svg.starts_with("<svg viewBox='0 0 490 240'"), "{svg}");
+        assert!(svg.ends_with("</svg>"));
+        assert_eq!(svg.matches("<g").count(), 2, "two views");
+        assert_eq!(
+            svg.matches(&format!("stroke='{BORDER}'")).count(),
+            2,
+            "the border in each view"
+        );
+        assert!(!svg.contains(NONMANIFOLD));
+        assert!(!svg.contains('"'), "single quotes only");
+        assert!(svg.matches("<path color=").count() >= 2);
+        assert!(svg.len() < 3000, "{} bytes", svg.len());
+    }
+
+    #[test]
+    fn nothing_to_draw_without_faces() {
+        assert_eq!(
+            picture(&Mesh::new(vec![[0.0; 3]; 3], vec![[0, 0, 1]])),
+            None
+        );
+        assert_eq!(picture(&Mesh::default()), None);
+    }
+
+    /// A 200 x 200 grid (80,000 faces) is clustered to at most MAX_FACES and stays small.
+    #[test]
+    fn big_meshes_are_simplified() {
+        let n = 200u32;
+        let positions = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| [i as f64, j as f64, ((i * j) as f64 * 0.01).sin()]))
+            .collect();
+        let mut triangles = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let v = j * (n + 1) + i;
+                triangles.push([v, v + 1, v + n + 1]);
+                triangles.push([v + 1, v + n + 2, v + n + 1]);
+            }
+        }
+        let svg = picture(&Mesh::new(positions, triangles)).unwrap();
+        let drawn: usize = svg
+            .split("data-drawn='")
+            .nth(1)
+            .unwrap()
+            .split('\'')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(drawn <= MAX_FACES && drawn > MAX_FACES / 4, "{drawn}");
+        assert!(svg.len() < 80_000, "{} bytes", svg.len());
+    }
+
+    #[test]
+    fn colours_are_short_hex() {
+        for c in 0..(3 * LEVELS) as u16 {
+            let s = face_colour(c);
+            assert_eq!(s.len(), 4, "{s}");
+        }
+        assert_ne!(face_colour(0), face_colour(LEVELS as u16 - 1));
+    }
+}
