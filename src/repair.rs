@@ -189,27 +189,22 @@ impl Plan {
 /// Plans the repair of one mesh.
 pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
     let mut work = Work::new(mesh, options);
-    let mut done = Vec::new();
+    let mut done: Vec<(Kind, usize, Option<String>)> = Vec::new();
     let mut not_repairable = Vec::new();
-    let mut record = |kind: Kind, n: usize, detail: Option<String>| {
-        if n > 0 {
-            done.push((kind, n, detail));
-        }
-    };
 
-    let dropped = work.drop_faces(options);
-    record(Kind::DropInvalidFaces, dropped[0], None);
-    record(Kind::DropDegenerateFaces, dropped[1], None);
-    record(Kind::DropDuplicateFaces, dropped[2], None);
+    let [invalid, degenerate, duplicate] = work.drop_faces(options);
+    done.push((Kind::DropInvalidFaces, invalid, None));
+    done.push((Kind::DropDegenerateFaces, degenerate, None));
+    done.push((Kind::DropDuplicateFaces, duplicate, None));
 
     if options.split_nonmanifold {
         let (edges, vertices) = work.split_nonmanifold(options);
-        record(Kind::SplitNonManifoldEdges, edges, None);
-        record(Kind::SplitNonManifoldVertices, vertices, None);
+        done.push((Kind::SplitNonManifoldEdges, edges, None));
+        done.push((Kind::SplitNonManifoldVertices, vertices, None));
     }
     if options.orient_faces || options.flip_inside_out {
         let (flipped, non_orientable) = work.orient(options.orient_faces);
-        record(Kind::OrientFaces, flipped, None);
+        done.push((Kind::OrientFaces, flipped, None));
         if non_orientable > 0 {
             not_repairable.push(format!(
                 "{non_orientable} non-orientable component{} left as is",
@@ -217,21 +212,17 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
             ));
         }
     }
+    let mut shells_flipped = (0, 0);
     if options.flip_inside_out {
-        let (shells, faces) = work.flip_inside_out(options);
-        record(
-            Kind::FlipInsideOutShells,
-            shells,
-            (shells > 0).then(|| format!("{faces} faces")),
-        );
+        shells_flipped = work.flip_inside_out(options);
     }
     if options.fill_holes {
         let fill = work.fill_holes(options.max_hole_edges);
-        record(
+        done.push((
             Kind::FillHoles,
             fill.holes,
-            (fill.holes > 0).then(|| format!("{} faces", fill.faces)),
-        );
+            Some(format!("{} faces", fill.faces)),
+        ));
         if fill.too_large > 0 {
             not_repairable.push(format!(
                 "{} hole{} over {} edges left open",
@@ -247,7 +238,18 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
                 plural(fill.blocked)
             ));
         }
+        // A component the fill closed is a new shell: it must face the right way too.
+        if options.flip_inside_out && fill.holes > 0 {
+            let (shells, faces) = work.flip_inside_out(options);
+            shells_flipped = (shells_flipped.0 + shells, shells_flipped.1 + faces);
+        }
     }
+    let (shells, faces) = shells_flipped;
+    done.push((
+        Kind::FlipInsideOutShells,
+        shells,
+        Some(format!("{faces} faces")),
+    ));
 
     let mut used_vertices = vec![!options.drop_unreferenced_vertices; work.vertex_count()];
     for t in &work.triangles {
@@ -256,8 +258,11 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
         }
     }
     let unused = used_vertices.iter().filter(|&&u| !u).count();
-    record(Kind::DropUnreferencedVertices, unused, None);
+    done.push((Kind::DropUnreferencedVertices, unused, None));
 
+    // SPEC order, repairs that did nothing left out.
+    done.retain(|(_, n, _)| *n > 0);
+    done.sort_by_key(|(kind, ..)| *kind);
     Plan {
         triangles: work.triangles,
         new_vertices: work.new_vertices,
@@ -378,20 +383,24 @@ impl<'a> Work<'a> {
     /// vertex whose faces form several fans gets a copy per extra fan. Repeats while cutting exposes
     /// more (at most a few rounds). Returns `(edges, vertices)` split.
     fn split_nonmanifold(&mut self, options: &Options) -> (usize, usize) {
-        let (mut edges, mut vertices) = (0, 0);
+        let (mut edges, mut vertices) = (None, 0);
         let nudge = self.nudge_distance(options.weld_tolerance);
-        for _round in 0..4 {
+        let mut last = usize::MAX;
+        for _round in 0..8 {
             let (table, index) = self.table();
             let mut opposite = table.opposites().to_vec();
-            let mut cut = 0;
+            let cut = table.nonmanifold_edges().len();
+            edges.get_or_insert(cut);
+            if cut > 0 && cut >= last {
+                // No progress: a cut face still shares a fan with the kept pair at both ends (the
+                // surface wraps onto itself). Detach such faces whole.
+                vertices += self.detach_cut_faces(&table, &index, nudge);
+                last = usize::MAX;
+                continue;
+            }
+            last = cut;
             for corners in table.nonmanifold_edges() {
-                cut += 1;
-                let pair = corners
-                    .iter()
-                    .enumerate()
-                    .flat_map(|(i, &a)| corners[i + 1..].iter().map(move |&b| (a, b)))
-                    .find(|&(a, b)| table.v(CornerTable::n(a)) == table.v(CornerTable::p(b)))
-                    .unwrap_or((corners[0], corners[1]));
+                let pair = keep_pair(&table, corners);
                 for &c in corners {
                     opposite[c as usize] = c;
                 }
@@ -402,10 +411,31 @@ impl<'a> Work<'a> {
             if cut == 0 && split == 0 {
                 break;
             }
-            edges += cut;
             vertices += split;
         }
-        (edges, vertices)
+        (edges.unwrap_or(0), vertices)
+    }
+
+    /// Gives every face on a non-manifold edge, but the pair kept there, its own three vertices.
+    fn detach_cut_faces(&mut self, table: &CornerTable, index: &[u32], nudge: f64) -> usize {
+        let mut faces: Vec<u32> = Vec::new();
+        for corners in table.nonmanifold_edges() {
+            let pair = keep_pair(table, corners);
+            faces.extend(
+                corners
+                    .iter()
+                    .filter(|&&c| c != pair.0 && c != pair.1)
+                    .map(|&c| CornerTable::t(c)),
+            );
+        }
+        faces.sort_unstable();
+        faces.dedup();
+        for &t in &faces {
+            for k in 0..3 {
+                self.detach_fan(table, index, &[3 * t + k], nudge);
+            }
+        }
+        3 * faces.len()
     }
 
     /// How far a vertex copy moves into its fan: beyond the weld tolerance and beyond the rounding of
@@ -741,6 +771,17 @@ impl<'a> Work<'a> {
         self.triangles.extend(new_triangles);
         fill
     }
+}
+
+/// The two corners of a non-manifold edge whose faces stay joined there: the first pair that
+/// traverses the edge in opposite directions, else the first two.
+fn keep_pair(table: &CornerTable, corners: &[u32]) -> (u32, u32) {
+    corners
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &a)| corners[i + 1..].iter().map(move |&b| (a, b)))
+        .find(|&(a, b)| table.v(CornerTable::n(a)) == table.v(CornerTable::p(b)))
+        .unwrap_or((corners[0], corners[1]))
 }
 
 /// Whether `a` and `b` are neighbours on the ring (a loop edge, not a diagonal).
