@@ -39,6 +39,11 @@ pub struct Scan {
     #[arg(long, value_name = "FILE")]
     pub csv: Option<PathBuf>,
 
+    /// Also write a self-contained HTML QA report to FILE: summary charts, a sortable table of every
+    /// mesh and a detail view with a picture of each.
+    #[arg(long, value_name = "FILE")]
+    pub html: Option<PathBuf>,
+
     /// Use this config instead of the nearest meshvet.toml upward from the current folder.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,

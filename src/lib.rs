@@ -5,6 +5,7 @@
 pub mod config;
 pub mod corner_table;
 pub mod formats;
+pub mod html;
 pub mod mesh;
 pub mod picture;
 pub mod repair;

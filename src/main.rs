@@ -7,13 +7,14 @@ mod cli;
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
+use std::time::{Instant, SystemTime};
 
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use cli::{Cli, Command};
 use meshvet::config;
+use meshvet::html::{self, HtmlReport};
 use meshvet::report::{CsvReport, Target};
 use meshvet::rules::{Severity, Status};
 use meshvet::scan::{self, Outcome};
@@ -118,6 +119,10 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         config::resolve(args.config.as_deref(), &cwd, &args.config_layer()).map_err(|e| {
             format!("bad config: {e}\nfix the config: every key and rule is listed in meshvet's configs/default.toml")
         })?;
+    let config_name = config_file.as_ref().map_or_else(
+        || "built-in defaults".to_owned(),
+        |p| p.display().to_string(),
+    );
     let filter = walk::Filter::new(&settings.include, &settings.exclude).map_err(|e| {
         let from = config_file.map_or_else(|| "the config".to_owned(), |p| p.display().to_string());
         format!("bad include/exclude in {from}: {e}")
@@ -156,17 +161,43 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     };
 
     let mut summary = Summary::default();
-    let written = scan::scan(&sources, &settings, &progress, |outcome| {
+    let mut html = args.html.as_ref().map(|_| HtmlReport::new());
+    let extras = scan::Extras {
+        details: html.is_some(),
+    };
+    let written = scan::scan_with(&sources, &settings, extras, &progress, |outcome| {
         summary.add(&outcome);
-        match &mut report {
+        let written = match &mut report {
             Some(r) => r.write(&outcome.row),
             None => Ok(()),
+        };
+        if let Some(h) = &mut html {
+            h.add(outcome);
         }
+        written
     });
     bar.finish_and_clear();
     let finished = written.and_then(|()| report.map_or(Ok(()), CsvReport::finish));
     if let (Err(e), Some(t)) = (finished, &target) {
         return Err(cannot_write(t, &e));
+    }
+    if let (Some(page), Some(path)) = (&html, &args.html) {
+        // Hook for `--baseline` (issue 5): pass its got-worse / got-better lists to
+        // `page.set_baseline(html::Baseline { .. })` before writing.
+        let meta = html::Meta {
+            roots: args.paths.iter().map(|p| p.display().to_string()).collect(),
+            config: config_name,
+            version: env!("CARGO_PKG_VERSION").to_owned(),
+            started: SystemTime::now() - started.elapsed(),
+            seconds: started.elapsed().as_secs_f64(),
+            files: sources.len(),
+        };
+        page.write(path, &meta).map_err(|e| {
+            format!(
+                "cannot write the HTML report {}: {e} - check that its folder exists and is writable",
+                path.display()
+            )
+        })?;
     }
 
     // The summary goes to standard output unless the CSV does.

@@ -112,11 +112,11 @@ impl Camera {
         let toward = [e.cos() * a.sin(), e.sin(), e.cos() * a.cos()];
         let right = normalized(cross(&[0.0, 1.0, 0.0], &toward));
         let up = cross(&toward, &right);
-        // Light from the upper left, in front of the viewer.
+        // Light from the upper left, behind the viewer.
         let light = normalized(add3(&[
-            scale3(&right, -0.4),
-            scale3(&up, 0.6),
-            scale3(&toward, 0.7),
+            scale3(&right, -0.35),
+            scale3(&up, 0.55),
+            scale3(&toward, 0.75),
         ]));
         Camera {
             right,
@@ -169,7 +169,8 @@ fn draw_faces(
         let n = normalized(cross(&sub(b, a), &sub(c, a)));
         let facing = dot(&n, &camera.toward);
         let seen = if facing >= 0.0 { n } else { scale3(&n, -1.0) };
-        let light = dot(&seen, &camera.light).clamp(0.0, 1.0);
+        // Lambert with an ambient term, so faces turned from the light stay readable.
+        let light = 0.3 + 0.7 * dot(&seen, &camera.light).max(0.0);
         let level = (light * (LEVELS - 1) as f64).round() as u16;
         let kind = if inside_out.get(i).copied().unwrap_or(false) {
             2
@@ -209,7 +210,7 @@ fn face_colour(colour: u16) -> String {
     const BASE: [[f64; 3]; 3] = [[0.62, 0.74, 0.9], [0.66, 0.66, 0.62], [0.88, 0.5, 0.86]];
     let base = BASE[colour as usize / LEVELS];
     let level = (colour as usize % LEVELS) as f64 / (LEVELS - 1) as f64;
-    let brightness = 0.35 + 0.75 * level;
+    let brightness = 0.45 + 0.6 * level;
     let digit = |x: f64| {
         let d = (x * brightness * 15.0).round().clamp(0.0, 15.0) as u32;
         char::from_digit(d, 16).expect("a hex digit")

@@ -31,7 +31,7 @@ const CHUNK_PER_THREAD: usize = 256;
 pub const THREAD_NAME: &str = "meshvet-scan";
 
 /// One report row and the findings behind it (for the summary).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Outcome {
     pub row: Row,
     pub findings: Vec<Finding>,
