@@ -2,9 +2,12 @@
 //! Corner Table for each mesh and reports its topology (holes, non-manifold edges and vertices,
 //! orientation, shells, cavities, genus). The library never prints; the binary owns the terminal.
 
+pub mod atomic;
 pub mod config;
 pub mod corner_table;
 pub mod formats;
+pub mod json;
+pub mod junit;
 pub mod html;
 pub mod mesh;
 pub mod picture;

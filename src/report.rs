@@ -9,15 +9,15 @@
 //! `millis` is the time to read the file plus the time to analyse this mesh, to the microsecond; it is
 //! the only cell that differs between two scans of the same tree.
 
-use std::fs::File;
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use serde::{Serialize, Serializer};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::atomic::AtomicFile;
 use crate::formats::Format;
 use crate::rules::{Finding, Status};
-use crate::topology::Analysis;
+use crate::topology::{Analysis, Role};
 
 /// The column names in order (the header the writer emits).
 pub const COLUMNS: [&str; 42] = [
@@ -66,12 +66,14 @@ pub const COLUMNS: [&str; 42] = [
 ];
 
 /// One line of the CSV report. Field order is column order (checked against [`COLUMNS`] by a test).
-#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+/// A row reads back from its CSV cells exactly (floats print in shortest round-trip form), which
+/// the cache, `--baseline` and `merge` rely on.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Row {
     pub path: String,
     pub mesh: String,
     pub format: String,
-    #[serde(serialize_with = "status_cell")]
+    #[serde(with = "status_cell")]
     pub status: Option<Status>,
     pub message: String,
     pub vertices: Option<usize>,
@@ -97,40 +99,106 @@ pub struct Row {
     pub solids: Option<usize>,
     pub euler: Option<i64>,
     pub genus: Option<i64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub volume: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub area: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub bbox_min_x: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub bbox_min_y: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub bbox_min_z: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub bbox_max_x: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub bbox_max_y: Option<f64>,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub bbox_max_z: Option<f64>,
     pub repaired_path: String,
     pub repairs: String,
-    #[serde(serialize_with = "float_cell")]
+    #[serde(with = "float_cell")]
     pub millis: Option<f64>,
     pub invalid_faces: Option<usize>,
     pub mirrored_instances: Option<u32>,
     pub findings: String,
 }
 
-fn float_cell<S: Serializer>(value: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
-    match value {
-        Some(v) => s.serialize_str(&v.to_string()),
-        None => s.serialize_str(""),
+mod float_cell {
+    use super::*;
+
+    pub fn serialize<S: Serializer>(value: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+        match value {
+            Some(v) => s.serialize_str(&v.to_string()),
+            None => s.serialize_str(""),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+        let cell = String::deserialize(d)?;
+        if cell.is_empty() {
+            return Ok(None);
+        }
+        cell.parse()
+            .map(Some)
+            .map_err(|_| serde::de::Error::custom(format!("`{cell}` is not a number")))
     }
 }
 
-fn status_cell<S: Serializer>(value: &Option<Status>, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(value.map_or("", Status::name))
+mod status_cell {
+    use super::*;
+
+    pub fn serialize<S: Serializer>(value: &Option<Status>, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(value.map_or("", Status::name))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Status>, D::Error> {
+        let cell = String::deserialize(d)?;
+        if cell.is_empty() {
+            return Ok(None);
+        }
+        Status::from_name(&cell)
+            .map(Some)
+            .ok_or_else(|| serde::de::Error::custom(format!("unknown status `{cell}`")))
+    }
+}
+
+/// One closed shell of a mesh (SPEC 7, 8), for the JSON report and the cache; the CSV only counts
+/// shells.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ShellRow {
+    pub faces: usize,
+    /// Boundary loops of the shell's component (0: a shell is closed).
+    pub holes: usize,
+    pub genus: Option<i64>,
+    /// Signed volume in the stored winding's majority; `None` when not orientable.
+    pub volume: Option<f64>,
+    /// How many other shells contain this one.
+    pub depth: usize,
+    pub role: Role,
+    pub inside_out: bool,
+}
+
+impl ShellRow {
+    /// The shells of an analysis, in component order.
+    pub fn of(analysis: &Analysis) -> Vec<ShellRow> {
+        analysis
+            .shells
+            .iter()
+            .map(|shell| ShellRow {
+                faces: shell.faces,
+                holes: analysis
+                    .components
+                    .get(shell.component)
+                    .map_or(0, |c| c.holes),
+                genus: shell.genus,
+                volume: shell.volume,
+                depth: shell.depth,
+                role: shell.role,
+                inside_out: shell.inside_out,
+            })
+            .collect()
+    }
 }
 
 impl Row {
@@ -230,41 +298,67 @@ pub enum Target {
     File(PathBuf),
 }
 
+/// An open report destination: standard output, or a file put in place atomically by
+/// [`Output::finish`] (see [`crate::atomic`]). Dropped unfinished, a file target is left untouched.
+pub enum Output {
+    Stdout(io::BufWriter<io::Stdout>),
+    File(AtomicFile),
+}
+
+impl Output {
+    pub fn create(target: &Target) -> io::Result<Output> {
+        Ok(match target {
+            Target::Stdout => Output::Stdout(io::BufWriter::new(io::stdout())),
+            Target::File(path) => Output::File(AtomicFile::create(path)?),
+        })
+    }
+
+    /// Flushes and, for a file, renames it into place.
+    pub fn finish(self) -> io::Result<()> {
+        match self {
+            Output::Stdout(mut out) => out.flush(),
+            Output::File(file) => file.commit(),
+        }
+    }
+}
+
+impl Write for Output {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Output::Stdout(out) => out.write(buf),
+            Output::File(file) => file.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        match self {
+            Output::Stdout(out) => out.flush(),
+            Output::File(file) => file.flush(),
+        }
+    }
+}
+
 /// A CSV report being written. [`CsvReport::finish`] puts a file target in place; dropping the
 /// report unfinished removes its temporary file and leaves any earlier report untouched.
 pub struct CsvReport {
-    writer: Option<csv::Writer<Box<dyn Write>>>,
-    /// `(temporary, final)` for a file target.
-    rename: Option<(PathBuf, PathBuf)>,
+    writer: Option<csv::Writer<Output>>,
 }
 
 impl CsvReport {
     /// Starts a report and writes the header.
     pub fn create(target: &Target) -> io::Result<CsvReport> {
-        let (sink, rename): (Box<dyn Write>, _) = match target {
-            Target::Stdout => (Box::new(io::BufWriter::new(io::stdout())), None),
-            Target::File(path) => {
-                let temporary = temporary_name(path);
-                let file = File::create(&temporary)?;
-                (
-                    Box::new(io::BufWriter::new(file)),
-                    Some((temporary, path.clone())),
-                )
-            }
-        };
         let mut report = CsvReport {
             writer: Some(
                 csv::WriterBuilder::new()
                     .has_headers(false)
-                    .from_writer(sink),
+                    .from_writer(Output::create(target)?),
             ),
-            rename,
         };
         report.writer()?.write_record(COLUMNS)?;
         Ok(report)
     }
 
-    fn writer(&mut self) -> io::Result<&mut csv::Writer<Box<dyn Write>>> {
+    fn writer(&mut self) -> io::Result<&mut csv::Writer<Output>> {
         self.writer
             .as_mut()
             .ok_or_else(|| io::Error::other("the report is already finished"))
@@ -277,34 +371,8 @@ impl CsvReport {
     /// Flushes the rows and, for a file, renames the temporary file over the target.
     pub fn finish(mut self) -> io::Result<()> {
         let writer = self.writer.take().expect("finish is called once");
-        let mut sink = writer.into_inner().map_err(|e| e.into_error())?;
-        sink.flush()?;
-        drop(sink);
-        if let Some((temporary, path)) = self.rename.take() {
-            if let Err(e) = std::fs::rename(&temporary, &path) {
-                let _ = std::fs::remove_file(&temporary);
-                return Err(e);
-            }
-        }
-        Ok(())
+        writer.into_inner().map_err(|e| e.into_error())?.finish()
     }
-}
-
-impl Drop for CsvReport {
-    fn drop(&mut self) {
-        if let Some((temporary, _)) = self.rename.take() {
-            self.writer = None;
-            let _ = std::fs::remove_file(temporary);
-        }
-    }
-}
-
-/// `dir/.name.PID.tmp` beside `path`, so the final rename stays on one file system.
-fn temporary_name(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map_or_else(|| "report.csv".into(), |n| n.to_string_lossy());
-    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 
 #[cfg(test)]

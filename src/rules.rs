@@ -29,6 +29,13 @@ impl Severity {
             Severity::Error => "error",
         }
     }
+
+    /// The severity with this name.
+    pub fn from_name(name: &str) -> Option<Severity> {
+        [Severity::Off, Severity::Warning, Severity::Error]
+            .into_iter()
+            .find(|s| s.name() == name)
+    }
 }
 
 impl fmt::Display for Severity {
@@ -296,6 +303,19 @@ impl Status {
             Status::Error => "error",
             Status::Empty => "empty",
         }
+    }
+
+    /// The status with this name (as a report writes it).
+    pub fn from_name(name: &str) -> Option<Status> {
+        [
+            Status::Pass,
+            Status::Warn,
+            Status::Fail,
+            Status::Error,
+            Status::Empty,
+        ]
+        .into_iter()
+        .find(|s| s.name() == name)
     }
 
     /// Whether the row makes the scan exit with code 1.

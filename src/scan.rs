@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use crate::config::Settings;
 use crate::formats::{self, Format, ReadContext};
 use crate::picture;
-use crate::report::Row;
+use crate::report::{Row, ShellRow};
 use crate::rules::{self, Finding, MeshFacts, Status};
 use crate::topology::{analyse, places, Shell};
 use crate::walk::Source;
@@ -35,6 +35,9 @@ pub const THREAD_NAME: &str = "meshvet-scan";
 pub struct Outcome {
     pub row: Row,
     pub findings: Vec<Finding>,
+    /// The mesh's closed shells (for the JSON report and the cache; a few small structs per mesh,
+    /// so always kept). Empty for error and empty rows.
+    pub shells: Vec<ShellRow>,
     /// What a detailed report shows beyond the row; only when [`Extras::details`] asked for it and
     /// the mesh has triangles.
     pub detail: Option<Box<Detail>>,
@@ -77,13 +80,30 @@ pub fn scan_with<E>(
     settings: &Settings,
     extras: Extras,
     progress: &(dyn Fn(usize) + Sync),
+    emit: impl FnMut(Outcome) -> Result<(), E>,
+) -> Result<(), E>
+where
+    E: From<std::io::Error>,
+{
+    let per_file = |source: &Source| scan_file_with(source, settings, extras);
+    scan_each(sources, settings.jobs, &per_file, progress, emit)
+}
+
+/// The parallel engine under [`scan_with`]: runs `per_file` on every source on a pool of `jobs`
+/// threads (0: one per core) and hands the outcomes to `emit` in report order. A caller that can
+/// answer some files without reading them (the cache) passes its own `per_file`.
+pub fn scan_each<E>(
+    sources: &[Source],
+    jobs: usize,
+    per_file: &(dyn Fn(&Source) -> Vec<Outcome> + Sync),
+    progress: &(dyn Fn(usize) + Sync),
     mut emit: impl FnMut(Outcome) -> Result<(), E>,
 ) -> Result<(), E>
 where
     E: From<std::io::Error>,
 {
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.jobs)
+        .num_threads(jobs)
         .thread_name(|i| format!("{THREAD_NAME}-{i}"))
         .build()
         .map_err(|e| std::io::Error::other(format!("cannot start the worker threads: {e}")))?;
@@ -93,7 +113,7 @@ where
             files
                 .par_iter()
                 .map(|source| {
-                    let outcomes = scan_file_with(source, settings, extras);
+                    let outcomes = per_file(source);
                     progress(outcomes.len());
                     outcomes
                 })
@@ -118,6 +138,7 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
         vec![Outcome {
             row: Row::error(&source.display, source.format, message, millis(start)),
             findings: Vec::new(),
+            shells: Vec::new(),
             detail: None,
         }]
     };
@@ -174,6 +195,7 @@ fn judge(
         return Ok(vec![Outcome {
             row,
             findings: Vec::new(),
+            shells: Vec::new(),
             detail: None,
         }]);
     }
@@ -216,6 +238,7 @@ fn judge(
             Outcome {
                 row,
                 findings,
+                shells: ShellRow::of(&analysis),
                 detail,
             }
         })

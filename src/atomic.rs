@@ -1,0 +1,110 @@
+//! Files that appear whole or not at all: every report (CSV, JSON Lines, JUnit, merged CSV) and every
+//! cache entry is written to a temporary file beside its target and renamed over it when complete.
+//! A crash, a full disk or an error half-way leaves the previous file untouched and no temporary
+//! file behind (dropping an uncommitted [`AtomicFile`] removes it).
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// A file being written under a temporary name; [`AtomicFile::commit`] puts it in place.
+pub struct AtomicFile {
+    writer: Option<BufWriter<File>>,
+    temporary: PathBuf,
+    path: PathBuf,
+}
+
+impl AtomicFile {
+    /// Starts writing `path` (its folder must exist).
+    pub fn create(path: &Path) -> io::Result<AtomicFile> {
+        let temporary = temporary_name(path);
+        let file = File::create(&temporary)?;
+        Ok(AtomicFile {
+            writer: Some(BufWriter::new(file)),
+            temporary,
+            path: path.to_owned(),
+        })
+    }
+
+    /// Writes `bytes` to `path` atomically in one call.
+    pub fn write_all(path: &Path, bytes: &[u8]) -> io::Result<()> {
+        let mut file = AtomicFile::create(path)?;
+        file.write_all(bytes)?;
+        file.commit()
+    }
+
+    /// Flushes the data and renames the temporary file over the target.
+    pub fn commit(mut self) -> io::Result<()> {
+        let writer = self.writer.take().expect("commit is called once");
+        let file = writer.into_inner().map_err(|e| e.into_error())?;
+        drop(file);
+        std::fs::rename(&self.temporary, &self.path)
+        // On error, `drop` removes the temporary file.
+    }
+
+    fn writer(&mut self) -> io::Result<&mut BufWriter<File>> {
+        self.writer
+            .as_mut()
+            .ok_or_else(|| io::Error::other("the file is already committed"))
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.writer()?.write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.writer()?.flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        self.writer = None;
+        // After a successful rename the temporary name no longer exists; the error is ignored.
+        let _ = std::fs::remove_file(&self.temporary);
+    }
+}
+
+/// `dir/.name.PID.N.tmp` beside `path`, so the final rename stays on one file system. `N` keeps
+/// temporary names distinct between threads of one process (the cache writes from every worker).
+fn temporary_name(path: &Path) -> PathBuf {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let name = path
+        .file_name()
+        .map_or_else(|| "report".into(), |n| n.to_string_lossy());
+    let n = NEXT.fetch_add(1, Ordering::Relaxed);
+    path.with_file_name(format!(".{name}.{}.{n}.tmp", std::process::id()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn committed_files_replace_the_old_one_and_leave_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.txt");
+        std::fs::write(&path, "old").unwrap();
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"new").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old", "not yet");
+        file.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn dropped_files_leave_the_old_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.txt");
+        std::fs::write(&path, "old").unwrap();
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"half").unwrap();
+        drop(file);
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

@@ -1,0 +1,180 @@
+//! The JSON Lines report (`--json FILE`): one object per mesh, in report order, for tools that would
+//! rather not parse CSV.
+//!
+//! Each object has every CSV column under its CSV name, in CSV order, typed: counts and floats are
+//! JSON numbers, booleans are `true`/`false`, an undefined value (an empty CSV cell) is `null`, text
+//! stays text. Two keys carry more than their CSV cells: `findings` is an array of
+//! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cell spelt out), and
+//! `shells` is the per-shell table
+//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out}` (the CSV's count is its
+//! length). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
+
+use std::io::{self, Write};
+
+use serde_json::{Map, Number, Value};
+
+use crate::report::{Output, ShellRow, Target};
+use crate::rules::Finding;
+use crate::scan::Outcome;
+use crate::topology::Role;
+
+/// The CSV columns whose cells are floats.
+const FLOAT_COLUMNS: [&str; 9] = [
+    "volume",
+    "area",
+    "bbox_min_x",
+    "bbox_min_y",
+    "bbox_min_z",
+    "bbox_max_x",
+    "bbox_max_y",
+    "bbox_max_z",
+    "millis",
+];
+
+/// A JSON Lines report being written; [`JsonReport::finish`] puts a file in place atomically.
+pub struct JsonReport {
+    out: Output,
+}
+
+impl JsonReport {
+    pub fn create(target: &Target) -> io::Result<JsonReport> {
+        Ok(JsonReport {
+            out: Output::create(target)?,
+        })
+    }
+
+    pub fn write(&mut self, outcome: &Outcome) -> io::Result<()> {
+        serde_json::to_writer(&mut self.out, &record(outcome))?;
+        self.out.write_all(b"\n")
+    }
+
+    pub fn finish(self) -> io::Result<()> {
+        self.out.finish()
+    }
+}
+
+/// The JSON object of one mesh (see the module docs).
+pub fn record(outcome: &Outcome) -> Value {
+    let mut object = match serde_json::to_value(&outcome.row) {
+        Ok(Value::Object(map)) => map,
+        // A Row is a struct of plain fields: it always serializes to an object.
+        _ => Map::new(),
+    };
+    for name in FLOAT_COLUMNS {
+        if let Some(value) = object.get_mut(name) {
+            *value = float(value.as_str().and_then(|cell| cell.parse().ok()));
+        }
+    }
+    if let Some(status) = object.get_mut("status") {
+        if status.as_str() == Some("") {
+            *status = Value::Null;
+        }
+    }
+    object.insert(
+        "findings".to_owned(),
+        outcome.findings.iter().map(finding).collect(),
+    );
+    object.insert(
+        "shells".to_owned(),
+        outcome.shells.iter().map(shell).collect(),
+    );
+    Value::Object(object)
+}
+
+fn float(value: Option<f64>) -> Value {
+    value
+        .and_then(Number::from_f64)
+        .map_or(Value::Null, Value::Number)
+}
+
+fn finding(f: &Finding) -> Value {
+    serde_json::json!({
+        "rule": f.rule.name(),
+        "severity": f.severity.name(),
+        "count": f.count,
+        "message": f.message,
+    })
+}
+
+fn shell(s: &ShellRow) -> Value {
+    serde_json::json!({
+        "faces": s.faces,
+        "holes": s.holes,
+        "genus": s.genus,
+        "volume": float(s.volume),
+        "depth": s.depth,
+        "role": role_name(s.role),
+        "inside_out": s.inside_out,
+    })
+}
+
+/// `solid` or `cavity`, as the reports write a shell's role.
+pub fn role_name(role: Role) -> &'static str {
+    match role {
+        Role::Solid => "solid",
+        Role::Cavity => "cavity",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::{Row, COLUMNS};
+    use crate::rules::{Rule, Severity, Status};
+
+    #[test]
+    fn every_column_is_a_key_with_a_typed_value() {
+        let outcome = Outcome {
+            row: Row {
+                path: "a.obj".into(),
+                status: Some(Status::Fail),
+                faces: Some(4),
+                orientable: Some(true),
+                volume: Some(-0.5),
+                millis: Some(1.25),
+                findings: "inside-out-shell:1".into(),
+                ..Row::default()
+            },
+            findings: vec![Finding {
+                rule: Rule::InsideOutShell,
+                severity: Severity::Error,
+                count: 1,
+                message: "1 inside-out shell".into(),
+            }],
+            shells: vec![ShellRow {
+                faces: 4,
+                genus: Some(0),
+                volume: Some(-0.5),
+                role: Role::Solid,
+                inside_out: true,
+                ..ShellRow::default()
+            }],
+            detail: None,
+        };
+        let value = record(&outcome);
+        let keys: Vec<&str> = value
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect();
+        assert_eq!(keys, COLUMNS, "the CSV columns in order");
+        assert_eq!(value["status"], "fail");
+        assert_eq!(value["faces"], 4);
+        assert_eq!(value["edges"], Value::Null);
+        assert_eq!(value["orientable"], true);
+        assert_eq!(value["volume"], -0.5);
+        assert_eq!(value["bbox_min_x"], Value::Null);
+        assert_eq!(value["millis"], 1.25);
+        assert_eq!(
+            value["findings"],
+            serde_json::json!([{"rule": "inside-out-shell", "severity": "error", "count": 1,
+                "message": "1 inside-out shell"}])
+        );
+        assert_eq!(
+            value["shells"],
+            serde_json::json!([{"faces": 4, "holes": 0, "genus": 0, "volume": -0.5, "depth": 0,
+                "role": "solid", "inside_out": true}])
+        );
+    }
+}

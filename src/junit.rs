@@ -1,0 +1,109 @@
+//! The JUnit XML report (`--junit FILE`), so CI dashboards show assets like tests: one
+//! `<testsuite name="meshvet">`, one `<testcase>` per mesh (name `path` or `path#mesh`, classname the
+//! mesh's folder, time its `millis`).
+//!
+//! - `pass` and `warn` meshes pass; warnings are listed in the case's `system-out`.
+//! - A `fail` mesh has a `<failure>`: its message names every error-severity finding
+//!   (`rule: message; ...`), its type the worst rule, and its text one line per error finding.
+//!   JUnit tools count a test case as failed once, and quick-junit writes one failure element per
+//!   case, so several error findings share that one element, a line each.
+//! - An `error` row (the file could not be read) is an `<error>` with the row's message.
+//! - An `empty` mesh (no triangles) is `<skipped>`: there was nothing to test.
+//!
+//! Cases are kept in memory until [`JunitReport::finish`] (a few hundred bytes per mesh).
+
+use std::io;
+use std::time::Duration;
+
+use quick_junit::{NonSuccessKind, Report, TestCase, TestCaseStatus, TestSuite};
+
+use crate::report::{Output, Target};
+use crate::rules::{Severity, Status};
+use crate::scan::Outcome;
+
+/// A JUnit report being gathered; [`JunitReport::finish`] writes it (a file atomically).
+pub struct JunitReport {
+    target: Target,
+    suite: TestSuite,
+}
+
+impl JunitReport {
+    /// Checks that the target can be created now, so a bad path fails before the scan.
+    pub fn create(target: &Target) -> io::Result<JunitReport> {
+        drop(Output::create(target)?);
+        Ok(JunitReport {
+            target: target.clone(),
+            suite: TestSuite::new("meshvet"),
+        })
+    }
+
+    pub fn write(&mut self, outcome: &Outcome) -> io::Result<()> {
+        self.suite.add_test_case(case(outcome));
+        Ok(())
+    }
+
+    /// Writes the report; `time` is the scan's wall time.
+    pub fn finish(mut self, time: Duration) -> io::Result<()> {
+        self.suite.set_time(time);
+        let mut report = Report::new("meshvet");
+        report.set_time(time);
+        report.add_test_suite(self.suite);
+        let mut out = Output::create(&self.target)?;
+        report.serialize(&mut out).map_err(io::Error::other)?;
+        out.finish()
+    }
+}
+
+/// The test case of one mesh (see the module docs).
+pub fn case(outcome: &Outcome) -> TestCase {
+    let row = &outcome.row;
+    let name = if row.mesh.is_empty() {
+        row.path.clone()
+    } else {
+        format!("{}#{}", row.path, row.mesh)
+    };
+    let line = |f: &crate::rules::Finding| format!("{}: {}", f.rule, f.message);
+    let of = |severity: Severity| -> Vec<String> {
+        outcome
+            .findings
+            .iter()
+            .filter(|f| f.severity == severity)
+            .map(line)
+            .collect()
+    };
+    let status = match row.status.unwrap_or(Status::Error) {
+        Status::Pass | Status::Warn => TestCaseStatus::success(),
+        Status::Fail => {
+            let errors = of(Severity::Error);
+            let mut status = TestCaseStatus::non_success(NonSuccessKind::Failure);
+            status.set_message(errors.join("; "));
+            if let Some(worst) = outcome.findings.first() {
+                status.set_type(worst.rule.name());
+            }
+            status.set_description(errors.join("\n"));
+            status
+        }
+        Status::Error => {
+            let mut status = TestCaseStatus::non_success(NonSuccessKind::Error);
+            status.set_message(row.message.as_str());
+            status.set_type("unreadable");
+            status
+        }
+        Status::Empty => {
+            let mut status = TestCaseStatus::skipped();
+            status.set_message(row.message.as_str());
+            status
+        }
+    };
+    let mut case = TestCase::new(name, status);
+    let folder = row.path.rsplit_once('/').map_or(".", |(folder, _)| folder);
+    case.set_classname(folder);
+    if let Some(millis) = row.millis.filter(|m| m.is_finite() && *m >= 0.0) {
+        case.set_time(Duration::from_secs_f64(millis / 1e3));
+    }
+    let warnings = of(Severity::Warning);
+    if !warnings.is_empty() {
+        case.set_system_out(format!("warnings:\n{}", warnings.join("\n")));
+    }
+    case
+}
