@@ -3,6 +3,8 @@
 //! orientation, shells, cavities, genus). The library never prints; the binary owns the terminal.
 
 pub mod atomic;
+pub mod baseline;
+pub mod cache;
 pub mod config;
 pub mod corner_table;
 pub mod formats;
@@ -15,6 +17,7 @@ pub mod repair;
 pub mod report;
 pub mod rules;
 pub mod scan;
+pub mod shard;
 pub mod topology;
 pub mod walk;
 pub mod weld;

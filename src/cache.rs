@@ -1,0 +1,555 @@
+//! The incremental cache for nightly scans (`--cache DIR`): one entry per scanned file, reused when
+//! nothing that could change its rows has changed.
+//!
+//! **Key.** blake3 over: the cache format, meshvet's version, a hash of the effective settings (every
+//! setting that can change a row: severities, weld tolerance, limits; not `jobs` or the
+//! include/exclude globs, which only choose files), the file's report path, and the bytes of the
+//! file and of everything its rows depend on: for `.obj`, every `mtllib` it names; for `.gltf` and
+//! `.glb`, every external `buffers[].uri` and `images[].uri`. A dependency that is missing, or that
+//! the reader would refuse (absolute, a URI scheme), is hashed as such, so it appearing later
+//! changes the key.
+//!
+//! **Entry.** `DIR/xx/<hash of the file's identity>` (absolute path, scanned root and report path),
+//! so a changed file overwrites its one entry instead of piling up new ones. It holds a header line,
+//! the key, a blake3 checksum of the payload and the payload: the rows as CSV lines (which read
+//! back exactly, see [`crate::report::Row`]), the findings and the shells. An entry is used only
+//! when the header, the key and the checksum all match and every part decodes; anything else
+//! (truncated, corrupt, written by another version or for other settings) is a miss and is
+//! rewritten. Entries are written atomically, so a crash leaves the old entry or the new one.
+//!
+//! **Hit.** The stored outcomes with `millis` replaced by the time the lookup took (hashing and
+//! decoding); every other cell is what a fresh scan writes. Error rows are never stored: a file
+//! that could not be read is read again next time. Outcomes with [`crate::scan::Detail`] (pictures
+//! for the HTML report) are not cached; callers that need details bypass the cache.
+
+use std::io::{self, Read};
+use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::atomic::AtomicFile;
+use crate::config::Settings;
+use crate::formats::Format;
+use crate::report::{Row, ShellRow};
+use crate::rules::{Finding, Rule, Severity, Status};
+use crate::scan::Outcome;
+use crate::topology::Role;
+use crate::walk::Source;
+
+/// First line of every entry; bump the number when the payload changes shape.
+const HEADER: &str = "meshvet-cache 1";
+
+/// An open cache folder.
+pub struct Cache {
+    dir: PathBuf,
+    /// blake3 of the format, the version and the row-changing settings.
+    settings: blake3::Hash,
+    max_file_bytes: u64,
+    hits: AtomicUsize,
+    misses: AtomicUsize,
+    write_errors: AtomicUsize,
+}
+
+/// How the cache did in one run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Stats {
+    pub hits: usize,
+    pub misses: usize,
+    /// Entries that could not be written (the scan went on).
+    pub write_errors: usize,
+}
+
+impl Cache {
+    /// Opens (creating if needed) the cache folder `dir` for scans with `settings`.
+    pub fn open(dir: &Path, settings: &Settings) -> io::Result<Cache> {
+        std::fs::create_dir_all(dir)?;
+        Ok(Cache {
+            dir: dir.to_owned(),
+            settings: settings_hash(settings),
+            max_file_bytes: settings.limits.max_file_bytes,
+            hits: AtomicUsize::new(0),
+            misses: AtomicUsize::new(0),
+            write_errors: AtomicUsize::new(0),
+        })
+    }
+
+    pub fn stats(&self) -> Stats {
+        Stats {
+            hits: self.hits.load(Ordering::Relaxed),
+            misses: self.misses.load(Ordering::Relaxed),
+            write_errors: self.write_errors.load(Ordering::Relaxed),
+        }
+    }
+
+    /// The outcomes of `source`: from its entry when the entry is valid for the file as it is now,
+    /// else from `fresh` (then stored). Never fails: cache trouble only costs time.
+    pub fn outcomes(&self, source: &Source, fresh: impl FnOnce() -> Vec<Outcome>) -> Vec<Outcome> {
+        let start = Instant::now();
+        let Some(key) = self.key(source) else {
+            return fresh();
+        };
+        let entry = self.entry_path(source);
+        if let Some(mut outcomes) = read_entry(&entry, &key) {
+            self.hits.fetch_add(1, Ordering::Relaxed);
+            let millis = (start.elapsed().as_secs_f64() * 1e6).round() / 1e3;
+            for outcome in &mut outcomes {
+                outcome.row.millis = Some(millis);
+            }
+            return outcomes;
+        }
+        self.misses.fetch_add(1, Ordering::Relaxed);
+        let outcomes = fresh();
+        let storable = outcomes
+            .iter()
+            .all(|o| o.row.status != Some(Status::Error) && o.detail.is_none());
+        if storable && write_entry(&entry, &key, &outcomes).is_err() {
+            self.write_errors.fetch_add(1, Ordering::Relaxed);
+        }
+        outcomes
+    }
+
+    /// The content key of a file as it is now; `None` when it cannot be cached (not a mesh file,
+    /// unreadable, over the size limit: the fresh scan says why).
+    fn key(&self, source: &Source) -> Option<blake3::Hash> {
+        if source.error.is_some() {
+            return None;
+        }
+        let format = source.format?;
+        let size = std::fs::metadata(&source.path).ok()?.len();
+        if size > self.max_file_bytes {
+            return None;
+        }
+        let bytes = std::fs::read(&source.path).ok()?;
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(self.settings.as_bytes());
+        field(&mut hasher, source.display.as_bytes());
+        field(&mut hasher, &bytes);
+        let folder = source.path.parent().unwrap_or(Path::new(""));
+        for dependency in dependencies(format, &bytes) {
+            field(&mut hasher, dependency.as_bytes());
+            match safe_relative(&dependency) {
+                Some(relative) => {
+                    hash_file(&mut hasher, &folder.join(relative), self.max_file_bytes)
+                }
+                None => field(&mut hasher, b"refused"),
+            }
+        }
+        Some(hasher.finalize())
+    }
+
+    /// Where the entry of `source` lives.
+    fn entry_path(&self, source: &Source) -> PathBuf {
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
+        let mut hasher = blake3::Hasher::new();
+        field(
+            &mut hasher,
+            absolute(&source.path).as_os_str().as_encoded_bytes(),
+        );
+        field(
+            &mut hasher,
+            absolute(&source.root).as_os_str().as_encoded_bytes(),
+        );
+        field(&mut hasher, source.display.as_bytes());
+        let name = hasher.finalize().to_hex();
+        self.dir.join(&name[..2]).join(&name[2..])
+    }
+}
+
+/// Adds a length-prefixed field, so fields cannot run into each other.
+fn field(hasher: &mut blake3::Hasher, bytes: &[u8]) {
+    hasher.update(&(bytes.len() as u64).to_le_bytes());
+    hasher.update(bytes);
+}
+
+/// Hashes a dependency's bytes, or what it is when it cannot be read as a regular file.
+fn hash_file(hasher: &mut blake3::Hasher, path: &Path, limit: u64) {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() && m.len() <= limit => match std::fs::read(path) {
+            Ok(bytes) => {
+                hasher.update(b"file");
+                field(hasher, &bytes);
+            }
+            Err(e) => field(hasher, format!("unreadable {:?}", e.kind()).as_bytes()),
+        },
+        Ok(m) if m.is_file() => field(hasher, format!("large {}", m.len()).as_bytes()),
+        Ok(_) => field(hasher, b"not a file"),
+        Err(e) => field(hasher, format!("missing {:?}", e.kind()).as_bytes()),
+    }
+}
+
+/// The settings that can change a row, hashed with the cache format and meshvet's version. The
+/// `Debug` form covers every field, so a setting added later is in the key without anyone
+/// remembering to add it.
+fn settings_hash(settings: &Settings) -> blake3::Hash {
+    let relevant = Settings {
+        jobs: 0,
+        include: Vec::new(),
+        exclude: Vec::new(),
+        ..settings.clone()
+    };
+    let mut hasher = blake3::Hasher::new();
+    field(&mut hasher, HEADER.as_bytes());
+    field(&mut hasher, env!("CARGO_PKG_VERSION").as_bytes());
+    field(&mut hasher, format!("{relevant:?}").as_bytes());
+    hasher.finalize()
+}
+
+/// The relative paths a file's rows depend on, as the file names them (deduplicated, in order).
+fn dependencies(format: Format, bytes: &[u8]) -> Vec<String> {
+    let mut found = match format {
+        Format::Obj => mtllibs(bytes),
+        Format::Gltf | Format::Glb => gltf_uris(bytes),
+        _ => Vec::new(),
+    };
+    let mut seen = std::collections::HashSet::new();
+    found.retain(|d| seen.insert(d.clone()));
+    found
+}
+
+/// The names after `mtllib`: the whole rest of the line and each word of it (the reader accepts a
+/// name with spaces and several names).
+fn mtllibs(bytes: &[u8]) -> Vec<String> {
+    let mut names = Vec::new();
+    for line in bytes.split(|&b| b == b'\n') {
+        let line = String::from_utf8_lossy(line);
+        let line = line.trim();
+        let Some(rest) = line.strip_prefix("mtllib") else {
+            continue;
+        };
+        if !rest.starts_with(char::is_whitespace) {
+            continue;
+        }
+        let rest = rest.trim();
+        names.push(rest.to_owned());
+        names.extend(rest.split_ascii_whitespace().map(str::to_owned));
+    }
+    names
+}
+
+/// The external `buffers[].uri` and `images[].uri` of a glTF or GLB file (percent-decoded), or none
+/// when its JSON cannot be found or parsed (the reader will then report the file).
+fn gltf_uris(bytes: &[u8]) -> Vec<String> {
+    let json = if bytes.starts_with(b"glTF") {
+        // GLB: 12-byte header, then the JSON chunk (length, type, data).
+        let Some(length) = bytes.get(12..16) else {
+            return Vec::new();
+        };
+        let length = u32::from_le_bytes(length.try_into().expect("4 bytes")) as usize;
+        match bytes.get(20..20usize.saturating_add(length)) {
+            Some(json) => json,
+            None => return Vec::new(),
+        }
+    } else {
+        bytes
+    };
+    let Ok(value) = serde_json::from_slice::<serde_json::Value>(json) else {
+        return Vec::new();
+    };
+    let mut uris = Vec::new();
+    for list in ["buffers", "images"] {
+        for item in value[list].as_array().into_iter().flatten() {
+            if let Some(uri) = item["uri"].as_str() {
+                if !uri.starts_with("data:") {
+                    uris.push(percent_decode(uri));
+                }
+            }
+        }
+    }
+    uris
+}
+
+fn percent_decode(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = bytes
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok())
+            .and_then(|h| u8::from_str_radix(h, 16).ok());
+        match (bytes[i], hex) {
+            (b'%', Some(b)) => {
+                out.push(b);
+                i += 3;
+            }
+            (b, _) => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// `name` as a relative path without a scheme, or `None` (the readers refuse those and never open
+/// them; neither does the cache).
+fn safe_relative(name: &str) -> Option<&Path> {
+    let path = Path::new(name);
+    let plain = !name.contains(':')
+        && !name.starts_with(['/', '\\'])
+        && path.components().all(|c| {
+            matches!(
+                c,
+                Component::Normal(_) | Component::CurDir | Component::ParentDir
+            )
+        });
+    plain.then_some(path)
+}
+
+/// One outcome as stored.
+#[derive(Serialize, Deserialize)]
+struct Stored {
+    /// The row as one CSV line (without the header).
+    row: String,
+    /// `(rule, severity, count, message)`.
+    findings: Vec<(String, String, usize, String)>,
+    /// `(faces, holes, genus, volume as text, depth, role, inside_out)`: the volume as Rust's
+    /// shortest round-trip text, so even an infinite one comes back exactly.
+    shells: Vec<(usize, usize, Option<i64>, String, usize, String, bool)>,
+}
+
+fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
+    let mut stored = Vec::with_capacity(outcomes.len());
+    for o in outcomes {
+        let mut writer = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(Vec::new());
+        writer.serialize(&o.row).map_err(io::Error::other)?;
+        let line = writer.into_inner().map_err(|e| e.into_error())?;
+        stored.push(Stored {
+            row: String::from_utf8(line).map_err(io::Error::other)?,
+            findings: o
+                .findings
+                .iter()
+                .map(|f| {
+                    (
+                        f.rule.name().to_owned(),
+                        f.severity.name().to_owned(),
+                        f.count,
+                        f.message.clone(),
+                    )
+                })
+                .collect(),
+            shells: o
+                .shells
+                .iter()
+                .map(|s| {
+                    (
+                        s.faces,
+                        s.holes,
+                        s.genus,
+                        s.volume.map_or_else(String::new, |v| v.to_string()),
+                        s.depth,
+                        crate::json::role_name(s.role).to_owned(),
+                        s.inside_out,
+                    )
+                })
+                .collect(),
+        });
+    }
+    serde_json::to_vec(&stored).map_err(io::Error::other)
+}
+
+fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
+    let stored: Vec<Stored> = serde_json::from_slice(payload).ok()?;
+    let mut outcomes = Vec::with_capacity(stored.len());
+    for s in stored {
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(s.row.as_bytes());
+        let row: Row = reader.deserialize().next()?.ok()?;
+        let findings = s
+            .findings
+            .into_iter()
+            .map(|(rule, severity, count, message)| {
+                Some(Finding {
+                    rule: Rule::from_name(&rule)?,
+                    severity: Severity::from_name(&severity)?,
+                    count,
+                    message,
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
+        let shells = s
+            .shells
+            .into_iter()
+            .map(|(faces, holes, genus, volume, depth, role, inside_out)| {
+                Some(ShellRow {
+                    faces,
+                    holes,
+                    genus,
+                    volume: if volume.is_empty() {
+                        None
+                    } else {
+                        Some(volume.parse().ok()?)
+                    },
+                    depth,
+                    role: match role.as_str() {
+                        "solid" => Role::Solid,
+                        "cavity" => Role::Cavity,
+                        _ => return None,
+                    },
+                    inside_out,
+                })
+            })
+            .collect::<Option<Vec<_>>>()?;
+        outcomes.push(Outcome {
+            row,
+            findings,
+            shells,
+            detail: None,
+        });
+    }
+    (!outcomes.is_empty()).then_some(outcomes)
+}
+
+/// The outcomes in the entry at `path` if it is whole and made for `key`.
+fn read_entry(path: &Path, key: &blake3::Hash) -> Option<Vec<Outcome>> {
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .ok()?
+        .read_to_end(&mut bytes)
+        .ok()?;
+    let mut parts = bytes.splitn(4, |&b| b == b'\n');
+    let (header, stored_key, sum, payload) =
+        (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
+    if header != HEADER.as_bytes() || stored_key != key.to_hex().as_bytes() {
+        return None;
+    }
+    if sum != blake3::hash(payload).to_hex().as_bytes() {
+        return None;
+    }
+    decode(payload)
+}
+
+fn write_entry(path: &Path, key: &blake3::Hash, outcomes: &[Outcome]) -> io::Result<()> {
+    let payload = encode(outcomes)?;
+    let mut bytes = Vec::with_capacity(payload.len() + 160);
+    bytes.extend_from_slice(HEADER.as_bytes());
+    bytes.push(b'\n');
+    bytes.extend_from_slice(key.to_hex().as_bytes());
+    bytes.push(b'\n');
+    bytes.extend_from_slice(blake3::hash(&payload).to_hex().as_bytes());
+    bytes.push(b'\n');
+    bytes.extend_from_slice(&payload);
+    if let Some(folder) = path.parent() {
+        std::fs::create_dir_all(folder)?;
+    }
+    AtomicFile::write_all(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scan::scan_file;
+    use crate::walk::{walk, Filter};
+
+    const OPEN: &str = "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+
+    fn setup() -> (tempfile::TempDir, Cache, Source) {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("tree")).unwrap();
+        std::fs::write(dir.path().join("tree/m.obj"), OPEN).unwrap();
+        let cache = Cache::open(&dir.path().join("cache"), &Settings::default()).unwrap();
+        let source = walk(&[dir.path().join("tree")], &Filter::everything()).remove(0);
+        (dir, cache, source)
+    }
+
+    fn without_millis(mut outcomes: Vec<Outcome>) -> Vec<Outcome> {
+        for o in &mut outcomes {
+            o.row.millis = None;
+        }
+        outcomes
+    }
+
+    #[test]
+    fn a_hit_equals_a_fresh_scan_except_millis() {
+        let (_dir, cache, source) = setup();
+        let settings = Settings::default();
+        let fresh = cache.outcomes(&source, || scan_file(&source, &settings));
+        let again = cache.outcomes(&source, || panic!("must come from the cache"));
+        assert_eq!(cache.stats().hits, 1);
+        assert_eq!(without_millis(fresh), without_millis(again));
+    }
+
+    #[test]
+    fn a_changed_file_or_dependency_is_a_miss() {
+        let (dir, cache, source) = setup();
+        let settings = Settings::default();
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        // The MTL appears: the key changes.
+        std::fs::write(dir.path().join("tree/a.mtl"), "newmtl x\n").unwrap();
+        let rows = cache.outcomes(&source, || scan_file(&source, &settings));
+        assert_eq!(cache.stats().misses, 2);
+        assert!(
+            !rows[0].row.message.contains("not found"),
+            "{}",
+            rows[0].row.message
+        );
+        std::fs::write(dir.path().join("tree/m.obj"), format!("{OPEN}f 1 3 2\n")).unwrap();
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        assert_eq!(cache.stats().misses, 3);
+        // Other settings: another key.
+        let mut strict = Settings::default();
+        strict.severities.set(Rule::DuplicateFace, Severity::Error);
+        let other = Cache::open(&dir.path().join("cache"), &strict).unwrap();
+        let rows = other.outcomes(&source, || scan_file(&source, &strict));
+        assert_eq!(other.stats().misses, 1);
+        assert_eq!(rows[0].row.status, Some(Status::Fail));
+    }
+
+    #[test]
+    fn corrupt_truncated_or_foreign_entries_are_recomputed() {
+        let (_dir, cache, source) = setup();
+        let settings = Settings::default();
+        let fresh = without_millis(cache.outcomes(&source, || scan_file(&source, &settings)));
+        let entry = cache.entry_path(&source);
+        let good = std::fs::read(&entry).unwrap();
+        let flip_last = {
+            let mut b = good.clone();
+            *b.last_mut().unwrap() ^= 1;
+            b
+        };
+        let foreign = String::from_utf8(good.clone())
+            .unwrap()
+            .replacen("meshvet-cache 1", "meshvet-cache 0", 1)
+            .into_bytes();
+        for bad in [
+            flip_last,
+            good[..good.len() / 2].to_vec(),
+            foreign,
+            Vec::new(),
+        ] {
+            std::fs::write(&entry, &bad).unwrap();
+            let misses = cache.stats().misses;
+            let got = cache.outcomes(&source, || scan_file(&source, &settings));
+            assert_eq!(cache.stats().misses, misses + 1, "not trusted");
+            assert_eq!(without_millis(got), fresh);
+            let again = cache.outcomes(&source, || panic!("the entry was rewritten"));
+            assert_eq!(without_millis(again), fresh);
+        }
+    }
+
+    #[test]
+    fn dependencies_are_found_in_obj_gltf_and_glb() {
+        assert_eq!(
+            dependencies(Format::Obj, b"v 0 0 0\n  mtllib a b.mtl\nmtllibx c\n"),
+            ["a b.mtl", "a", "b.mtl"]
+        );
+        let gltf = br#"{"buffers":[{"uri":"../buffers/x%20y.bin"},{"uri":"data:,"}],"images":[{"uri":"t.png"}]}"#;
+        assert_eq!(
+            dependencies(Format::Gltf, gltf),
+            ["../buffers/x y.bin", "t.png"]
+        );
+        let mut glb = b"glTF\x02\0\0\0\0\0\0\0".to_vec();
+        glb.extend_from_slice(&(gltf.len() as u32).to_le_bytes());
+        glb.extend_from_slice(b"JSON");
+        glb.extend_from_slice(gltf);
+        assert_eq!(dependencies(Format::Glb, &glb).len(), 2);
+        assert_eq!(safe_relative("/etc/passwd"), None);
+        assert_eq!(safe_relative("file:x.bin"), None);
+        assert!(safe_relative("../b/x.bin").is_some());
+    }
+}
