@@ -8,10 +8,11 @@ use std::path::{Path, PathBuf};
 use crate::mesh::Mesh;
 
 mod gltf;
-mod obj;
-mod off;
-mod ply;
+pub(crate) mod obj;
+pub(crate) mod off;
+pub(crate) mod ply;
 pub(crate) mod polygon;
+pub mod write;
 mod stl;
 
 /// The file formats meshvet reads.

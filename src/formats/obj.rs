@@ -43,6 +43,7 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
 struct Parsed {
     mesh: Mesh,
     mtllibs: Vec<(String, u64)>,
+    detail: Option<Box<Detail>>,
 }
 
 /// Counts of skipped statements: keyword -> (lines, first line).
@@ -50,6 +51,59 @@ type Skipped = BTreeMap<String, (u64, u64)>;
 
 /// Parses OBJ bytes. Errors name the line.
 fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Parsed, ReadError> {
+    parse_with(bytes, cx, None)
+}
+
+/// What a repaired copy needs beyond the geometry (a "full" read, [`read_full`]): texture
+/// coordinates, normals, each polygon's corners and the triangles it became, and the
+/// `o`/`g`/`s`/`usemtl` state each polygon was read in. The scan never pays for this.
+#[derive(Debug, Default)]
+pub(crate) struct Detail {
+    /// Text after `x y z` on each `v` line (`w`, vertex colours), trimmed; usually empty.
+    pub vertex_extra: Vec<String>,
+    /// Text after `vt` on each `vt` line.
+    pub texcoords: Vec<String>,
+    /// Text after `vn` on each `vn` line.
+    pub normals: Vec<String>,
+    pub faces: Vec<Face>,
+    /// `o`, `g`, `s`, `usemtl` as they were for each face ([`Face::state`]).
+    pub states: Vec<State>,
+    /// `mtllib` arguments, in file order.
+    pub mtllibs: Vec<String>,
+}
+
+/// One `f` line.
+#[derive(Debug, Clone)]
+pub(crate) struct Face {
+    /// (v, vt, vn) of each corner, 0-based; a `vt`/`vn` that is absent or out of range is `None`.
+    pub corners: Vec<(u32, Option<u32>, Option<u32>)>,
+    /// Index into [`Detail::states`].
+    pub state: u32,
+}
+
+/// The grouping statements in force (the text after the keyword).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub(crate) struct State {
+    pub object: Option<String>,
+    pub group: Option<String>,
+    pub smoothing: Option<String>,
+    pub material: Option<String>,
+}
+
+/// Reads the file's one mesh with the [`Detail`] a writer needs.
+pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
+    let bytes = std::fs::read(path)?;
+    let parsed = parse_with(&bytes, cx, Some(Box::default()))?;
+    let mut detail = parsed.detail.unwrap_or_default();
+    detail.mtllibs = parsed.mtllibs.into_iter().map(|(name, _)| name).collect();
+    Ok((parsed.mesh, *detail))
+}
+
+fn parse_with(
+    bytes: &[u8],
+    cx: &ReadContext,
+    detail: Option<Box<Detail>>,
+) -> Result<Parsed, ReadError> {
     let mut notes = Vec::new();
     let text = decode(bytes, &mut notes)?;
     let mut p = Parser {
@@ -65,6 +119,8 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Parsed, ReadError> {
         max_index: (0, 0),
         odd_numbers: (0, 0),
         malformed: (0, 0),
+        detail,
+        state: State::default(),
     };
     // Rough preallocation from the file size (a vertex line is at least ~8 bytes); capped so a
     // large file of comments does not reserve much.
@@ -153,6 +209,9 @@ struct Parser<'c> {
     odd_numbers: (u64, u64),
     /// (count, first line) of malformed numbers read by their leading part.
     malformed: (u64, u64),
+    /// Kept only for a full read.
+    detail: Option<Box<Detail>>,
+    state: State,
 }
 
 fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
@@ -160,6 +219,52 @@ fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
 }
 
 impl Parser<'_> {
+    /// Full read: keeps a `vt`/`vn` line or a change of grouping state.
+    fn keep(&mut self, keyword: &str, line: &str) {
+        let Some(detail) = self.detail.as_mut() else {
+            return;
+        };
+        let rest = line.trim_start()[keyword.len()..].trim().to_owned();
+        let value = (!rest.is_empty()).then_some(rest.clone());
+        match keyword {
+            "vt" => detail.texcoords.push(rest),
+            "vn" => detail.normals.push(rest),
+            "o" => self.state.object = value,
+            "g" => self.state.group = value,
+            "s" => self.state.smoothing = value,
+            _ => self.state.material = value,
+        }
+    }
+
+    /// Full read: the face just read, with its `vt`/`vn` indices and grouping state.
+    fn keep_face<'a>(&mut self, words: impl Iterator<Item = &'a str>) {
+        let Some(detail) = self.detail.as_mut() else {
+            return;
+        };
+        if detail.states.last() != Some(&self.state) {
+            detail.states.push(self.state.clone());
+        }
+        let resolve = |word: Option<&str>, n: usize| -> Option<u32> {
+            let i: i64 = word?.parse().ok()?;
+            let i = if i < 0 { n as i64 + i } else { i - 1 };
+            (0..n as i64).contains(&i).then_some(i as u32)
+        };
+        let (nt, nn) = (detail.texcoords.len(), detail.normals.len());
+        let corners = words
+            .zip(&self.poly)
+            .map(|(w, &v)| {
+                let mut parts = w.split('/').skip(1);
+                let vt = resolve(parts.next(), nt);
+                let vn = resolve(parts.next(), nn);
+                (v, vt, vn)
+            })
+            .collect();
+        detail.faces.push(Face {
+            corners,
+            state: (detail.states.len() - 1) as u32,
+        });
+    }
+
     fn statement(&mut self, line: &str, line_no: u64) -> Result<(), ReadError> {
         let line = strip_comment(line);
         let mut words = line.split_ascii_whitespace();
@@ -168,7 +273,15 @@ impl Parser<'_> {
         };
         match keyword {
             "v" => self.vertex(words, line_no),
-            "f" | "fo" => self.face(words, line_no),
+            "f" | "fo" => {
+                self.face(words.clone(), line_no)?;
+                self.keep_face(words);
+                Ok(())
+            }
+            "vt" | "vn" | "o" | "g" | "s" | "usemtl" if self.detail.is_some() => {
+                self.keep(keyword, line);
+                Ok(())
+            }
             "vt" | "vn" | "vp" | "o" | "g" | "s" | "usemtl" => Ok(()),
             "mtllib" => {
                 let rest = line.trim_start()["mtllib".len()..].trim();
@@ -240,6 +353,10 @@ impl Parser<'_> {
             return Err(over_limit("vertices", self.cx));
         }
         self.mesh.positions.push(p);
+        if let Some(detail) = self.detail.as_mut() {
+            let extra: Vec<&str> = words.collect();
+            detail.vertex_extra.push(extra.join(" "));
+        }
         Ok(())
     }
 
@@ -382,6 +499,7 @@ impl Parser<'_> {
         Ok(Parsed {
             mesh: self.mesh,
             mtllibs: self.mtllibs,
+            detail: self.detail,
         })
     }
 }

@@ -80,6 +80,17 @@ impl<'a> Cursor<'a> {
         Some((&self.bytes[start..self.pos], self.line))
     }
 
+    /// The rest of the current line (comment and surrounding blanks removed), then skips it.
+    fn rest_of_line(&mut self) -> &'a [u8] {
+        let start = self.pos;
+        let end = self.bytes[start..]
+            .iter()
+            .position(|&b| b == b'\n' || b == b'#')
+            .map_or(self.bytes.len(), |k| start + k);
+        self.skip_line();
+        self.bytes[start..end].trim_ascii()
+    }
+
     /// Skips to the start of the next line.
     fn skip_line(&mut self) {
         while let Some(&b) = self.bytes.get(self.pos) {
@@ -110,6 +121,32 @@ fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
 }
 
 fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+    parse_with(bytes, cx, None)
+}
+
+/// What a writer needs beyond the geometry: the header keyword, the values after each vertex's
+/// `x y z` (normals, colours, texture coordinates) and after each face's indices (its colour).
+#[derive(Debug, Default)]
+pub(crate) struct Detail {
+    pub keyword: String,
+    pub vertex_extra: Vec<String>,
+    pub faces: Vec<Vec<u32>>,
+    pub face_extra: Vec<String>,
+}
+
+/// Reads the file's one mesh with the [`Detail`] a writer needs.
+pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
+    let bytes = std::fs::read(path)?;
+    let mut detail = Detail::default();
+    let mesh = parse_with(&bytes, cx, Some(&mut detail))?;
+    Ok((mesh, detail))
+}
+
+fn parse_with(
+    bytes: &[u8],
+    cx: &ReadContext,
+    mut detail: Option<&mut Detail>,
+) -> Result<Mesh, ReadError> {
     let mut mesh = Mesh::default();
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut lines = Lines {
@@ -122,6 +159,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     };
     let mut head = words(first);
     let keyword = head.next().unwrap_or_default();
+    if let Some(d) = detail.as_deref_mut() {
+        d.keyword = String::from_utf8_lossy(keyword).into_owned();
+    }
     // `[ST][C][N][4][n]OFF`, possibly glued to the first count (`OFF8 6 12` is seen in the wild).
     let at = keyword
         .windows(3)
@@ -246,7 +286,12 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 line_err(no, format!("vertex {k}: `{}` is not a number", text(word)))
             })?;
         }
-        body.skip_line();
+        match detail.as_deref_mut() {
+            Some(d) => d
+                .vertex_extra
+                .push(String::from_utf8_lossy(body.rest_of_line()).into_owned()),
+            None => body.skip_line(),
+        }
         mesh.positions.push(p);
     }
 
@@ -281,7 +326,14 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             poly.push(i as u32);
         }
         // Anything after the indices is the face colour.
-        body.skip_line();
+        match detail.as_deref_mut() {
+            Some(d) => {
+                d.face_extra
+                    .push(String::from_utf8_lossy(body.rest_of_line()).into_owned());
+                d.faces.push(poly.clone());
+            }
+            None => body.skip_line(),
+        }
         let split = polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
         tally.add(split, no);
         if mesh.triangles.len() as u64 > cx.limits.max_triangles {

@@ -325,6 +325,17 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     Ok(mesh)
 }
 
+/// The header of a PLY file for a writer: its cleaned text (one statement a line, comments kept),
+/// the parsed definitions and the offset of the payload.
+pub(crate) fn header(bytes: &[u8]) -> Result<(String, ply_rs_bw::ply::Header, usize), ReadError> {
+    let mut notes = Vec::new();
+    let (text, body_start, _) = split_header(bytes, &mut notes)?;
+    let header = Parser::<Skip>::new()
+        .read_header(&mut Reader::new(text.as_bytes()))
+        .map_err(|e| ReadError::new(format!("invalid PLY header: {}", flat(&e.to_string()))))?;
+    Ok((text, header, body_start))
+}
+
 /// Filling an element from ASCII tokens. ply-rs's ASCII grammar rejects `nan` and `inf`, which
 /// a validator must read (and report), so ASCII payload lines are split here.
 trait Ascii {

@@ -248,6 +248,79 @@ impl Data<'_> {
         Ok(())
     }
 
+    /// The elements of any accessor as packed bytes, `size` bytes each (strides removed, sparse
+    /// values applied): for a writer that copies attributes it does not interpret.
+    pub fn raw(
+        &self,
+        accessor: &json::Accessor,
+        size: usize,
+        what: &str,
+    ) -> Result<Vec<u8>, ReadError> {
+        let count = usize::try_from(accessor.count.0).map_err(|_| {
+            err(format!(
+                "{what}: accessor count {} is too large",
+                accessor.count.0
+            ))
+        })?;
+        let mut out = match accessor.buffer_view {
+            Some(view) => {
+                let offset = accessor.byte_offset.map_or(0, |o| o.0);
+                let elements = self.strided(view.value(), offset, count, size, true, what)?;
+                let mut out = Vec::with_capacity(count * size);
+                for i in 0..count {
+                    out.extend_from_slice(elements.element(i));
+                }
+                out
+            }
+            None => {
+                let bytes = (count as u64).saturating_mul(size as u64);
+                if count as u64 > self.limits.max_triangles || bytes > self.limits.max_file_bytes {
+                    return Err(err(format!(
+                        "{what}: accessor without a buffer view declares {count} elements, over the limits"
+                    )));
+                }
+                vec![0; count * size]
+            }
+        };
+        if let Some(sparse) = &accessor.sparse {
+            let n = usize::try_from(sparse.count.0)
+                .unwrap_or(usize::MAX)
+                .min(count);
+            let Checked::Valid(index_type) = sparse.indices.component_type else {
+                return Err(err(format!(
+                    "{what}: sparse indices have an invalid componentType"
+                )));
+            };
+            let index_type = index_type.0;
+            let indices = self.strided(
+                sparse.indices.buffer_view.value(),
+                sparse.indices.byte_offset.0,
+                n,
+                index_type.size(),
+                false,
+                what,
+            )?;
+            let values = self.strided(
+                sparse.values.buffer_view.value(),
+                sparse.values.byte_offset.0,
+                n,
+                size,
+                false,
+                what,
+            )?;
+            for i in 0..n {
+                let at = decode_index(index_type, indices.element(i)) as usize;
+                let slot = out.get_mut(at * size..(at + 1) * size).ok_or_else(|| {
+                    err(format!(
+                        "{what}: sparse index {at} is out of range ({count} elements)"
+                    ))
+                })?;
+                slot.copy_from_slice(values.element(i));
+            }
+        }
+        Ok(out)
+    }
+
     /// Appends the positions of a POSITION accessor (FLOAT VEC3) to `out`, as f64.
     pub fn append_positions(
         &self,

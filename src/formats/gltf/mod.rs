@@ -8,9 +8,9 @@
 //! reads accessors from bytes it has checked (`accessor`). Every index, type, stride and byte range is checked before use; a panic that
 //! slips through anyway is caught and reported as a read error for this file.
 
-mod accessor;
-mod buffers;
-mod container;
+pub(super) mod accessor;
+pub(super) mod buffers;
+pub(super) mod container;
 mod nodes;
 
 use std::collections::BTreeSet;

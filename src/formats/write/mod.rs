@@ -1,0 +1,368 @@
+//! Writers of repaired copies (SPEC 10): each applies a [`Plan`] to the source file and writes the
+//! result in the source's format, keeping every attribute the file carries.
+//!
+//! A writer re-reads the source with its reader's "full" read (the readers are deterministic, so
+//! the plan's input vertices and corners line up with what the full read returns), then writes
+//! the copy to a temporary file in the output folder and renames it: a crash leaves no half-written
+//! copy, and the source is never opened for writing. Helpers shared by the polygon formats live
+//! here: which source polygons survive whole, vertex renumbering and the normal check.
+
+mod gltf;
+mod obj;
+mod off;
+mod ply;
+mod stl;
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use rustc_hash::FxHashMap;
+
+use super::{polygon, Format, ReadContext, ReadError};
+use crate::mesh::Mesh;
+use crate::repair::Plan;
+
+/// Why a repaired copy could not be written. The message is for a person.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct WriteError(pub String);
+
+impl WriteError {
+    pub fn new(msg: impl Into<String>) -> WriteError {
+        WriteError(msg.into())
+    }
+}
+
+impl From<ReadError> for WriteError {
+    fn from(e: ReadError) -> WriteError {
+        WriteError(format!("cannot re-read the source: {}", e.0))
+    }
+}
+
+impl From<std::io::Error> for WriteError {
+    fn from(e: std::io::Error) -> WriteError {
+        WriteError(format!("cannot write the repaired copy: {e}"))
+    }
+}
+
+/// Writes the repaired copy of `source` to `out`: `plans` has one entry per mesh the reader
+/// returns (`None`: that mesh is left as it is). Files the copy needs beside it (an OBJ's `.mtl`
+/// and textures, a glTF's buffers and images) are written next to it. Returns every file written,
+/// the copy first.
+pub fn write_repaired(
+    source: &Path,
+    format: Format,
+    plans: &[Option<Plan>],
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<Vec<PathBuf>, WriteError> {
+    let same = match (source.canonicalize(), out.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same {
+        return Err(WriteError::new(
+            "the repaired copy would overwrite its source: choose an output folder outside the scanned files",
+        ));
+    }
+    let size = std::fs::metadata(source)?.len();
+    if size > cx.limits.max_file_bytes {
+        return Err(WriteError::new(format!(
+            "file is {size} bytes, over the limit of {} bytes",
+            cx.limits.max_file_bytes
+        )));
+    }
+    let single = || -> Result<&Plan, WriteError> {
+        match plans {
+            [Some(plan)] => Ok(plan),
+            _ => Err(WriteError::new(format!(
+                "a {format} file is one mesh: expected one plan, got {}",
+                plans.len()
+            ))),
+        }
+    };
+    let mut written = vec![out.to_path_buf()];
+    match format {
+        Format::Obj => written.extend(obj::write(source, single()?, out, cx)?),
+        Format::Stl => stl::write(source, single()?, out, cx)?,
+        Format::Ply => ply::write(source, single()?, out, cx)?,
+        Format::Off => off::write(source, single()?, out, cx)?,
+        Format::Gltf | Format::Glb => written.extend(gltf::write(source, plans, out, cx)?),
+    }
+    Ok(written)
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, creating
+/// the folder when needed.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let folder = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(folder)?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let temp = folder.join(format!(
+        ".{name}.{}-{}.meshvet-tmp",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let result = (|| {
+        let mut file = std::fs::File::create(&temp)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&temp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&temp);
+        return Err(WriteError(format!("cannot write {}: {e}", path.display())));
+    }
+    Ok(())
+}
+
+/// Copies `from` (a file the source refers to) to `to` atomically, unless `to` is `from` itself.
+pub(crate) fn copy_beside(from: &Path, to: &Path) -> Result<(), WriteError> {
+    if let (Ok(a), Ok(b)) = (from.canonicalize(), to.canonicalize()) {
+        if a == b {
+            return Ok(());
+        }
+    }
+    let bytes = std::fs::read(from)
+        .map_err(|e| WriteError(format!("cannot read {}: {e}", from.display())))?;
+    write_atomic(to, &bytes)
+}
+
+/// New numbers of the kept vertices (input, then new, as [`Plan::apply`] numbers them);
+/// `u32::MAX` for dropped ones.
+pub(crate) fn renumber(plan: &Plan) -> (Vec<u32>, usize) {
+    let mut index = vec![u32::MAX; plan.used_vertices.len()];
+    let mut next = 0u32;
+    for (i, &used) in plan.used_vertices.iter().enumerate() {
+        if used {
+            index[i] = next;
+            next += 1;
+        }
+    }
+    (index, next as usize)
+}
+
+/// The input vertex a plan vertex carries the attributes of (itself, or what a new vertex copies).
+pub(crate) fn original(plan: &Plan, mesh: &Mesh, vertex: u32) -> u32 {
+    match (vertex as usize).checked_sub(mesh.positions.len()) {
+        Some(i) => plan.new_vertices[i].copy_of,
+        None => vertex,
+    }
+}
+
+/// One item of a repaired polygon file, in output order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Item {
+    /// A source polygon written back whole (`reversed`: every triangle of it was flipped).
+    Polygon { face: usize, reversed: bool },
+    /// A plan triangle written as a triangle.
+    Triangle(usize),
+}
+
+/// The source polygons of a file: polygon `f` became `triangles[first[f]..first[f] + count[f]]`.
+pub(crate) struct Polygons {
+    pub first: Vec<u32>,
+    pub count: Vec<u32>,
+    /// The polygon of every input triangle.
+    pub of_triangle: Vec<u32>,
+    /// The polygon corner (0-based position in its polygon) of every input triangle's corners.
+    pub local: Vec<[u32; 3]>,
+    /// Whether each polygon was split as a fan from its first corner (so its reverse, read again,
+    /// splits into the same triangles reversed).
+    pub fan: Vec<bool>,
+}
+
+impl Polygons {
+    /// `faces` lists each polygon's vertices; they were split in order, `n - 2` triangles each
+    /// (none under 3), by the same code that splits them here.
+    pub fn new(faces: impl Iterator<Item = Vec<u32>>, mesh: &Mesh) -> Result<Polygons, WriteError> {
+        let mut p = Polygons {
+            first: Vec::new(),
+            count: Vec::new(),
+            of_triangle: Vec::with_capacity(mesh.triangles.len()),
+            local: Vec::with_capacity(mesh.triangles.len()),
+            fan: Vec::new(),
+        };
+        let mut local = Vec::new();
+        for (f, poly) in faces.enumerate() {
+            let first = p.of_triangle.len();
+            local.clear();
+            local_triangles(&poly, &mesh.positions, &mut local);
+            let fan = local
+                .iter()
+                .enumerate()
+                .all(|(i, t)| *t == [0, i as u32 + 1, i as u32 + 2]);
+            for (i, t) in local.iter().enumerate() {
+                let expected = t.map(|k| poly[k as usize]);
+                if mesh.triangles.get(first + i) != Some(&expected) {
+                    return Err(WriteError::new(format!(
+                        "the source's polygon {f} did not split as it did when scanned (internal error: please report this file)"
+                    )));
+                }
+            }
+            p.of_triangle
+                .extend(std::iter::repeat_n(f as u32, local.len()));
+            p.local.extend_from_slice(&local);
+            p.first.push(first as u32);
+            p.count.push(local.len() as u32);
+            p.fan.push(fan);
+        }
+        if p.of_triangle.len() != mesh.triangles.len() {
+            return Err(WriteError::new(
+                "the source's polygons do not add up to its triangles (internal error: please report this file)",
+            ));
+        }
+        Ok(p)
+    }
+
+    /// The output items: polygons whose triangles all survive with their own vertices (all flipped
+    /// or none) are written whole, at their first triangle; everything else as triangles.
+    pub fn items(&self, plan: &Plan, mesh: &Mesh) -> Vec<Item> {
+        // Per polygon: surviving unchanged triangles, how many of them flipped.
+        let mut whole = vec![(0u32, 0u32); self.first.len()];
+        for t in &plan.triangles {
+            let Some(source) = t.source else { continue };
+            let unchanged = t.corners.iter().all(|c| {
+                c.from / 3 == source
+                    && mesh
+                        .triangles
+                        .get(source as usize)
+                        .map(|s| s[(c.from % 3) as usize])
+                        == Some(c.vertex)
+            });
+            if unchanged {
+                let f = self.of_triangle[source as usize] as usize;
+                whole[f].0 += 1;
+                whole[f].1 += u32::from(t.flipped);
+            }
+        }
+        let is_whole = |f: usize| {
+            let (kept, flipped) = whole[f];
+            kept == self.count[f] && (flipped == 0 || (flipped == kept && self.fan[f]))
+        };
+        let mut done = vec![false; self.first.len()];
+        let mut items = Vec::with_capacity(plan.triangles.len());
+        for (i, t) in plan.triangles.iter().enumerate() {
+            if let Some(source) = t.source {
+                let f = self.of_triangle[source as usize] as usize;
+                if self.count[f] > 1 && is_whole(f) {
+                    if !done[f] {
+                        done[f] = true;
+                        items.push(Item::Polygon {
+                            face: f,
+                            reversed: whole[f].1 > 0,
+                        });
+                    }
+                    continue;
+                }
+            }
+            items.push(Item::Triangle(i));
+        }
+        items
+    }
+
+    /// Polygon and polygon corner of input corner `c` (`3 * triangle + k`).
+    pub fn corner(&self, c: u32) -> (usize, usize) {
+        let t = (c / 3) as usize;
+        (
+            self.of_triangle[t] as usize,
+            self.local[t][(c % 3) as usize] as usize,
+        )
+    }
+
+    /// The polygon whose attributes (material, group, face properties) plan triangle `t` takes.
+    pub fn of(&self, t: &crate::repair::Triangle) -> usize {
+        self.of_triangle[t.near as usize] as usize
+    }
+}
+
+/// The triangles `polygon::triangulate` makes of `poly`, as corner numbers of the polygon.
+pub(crate) fn local_triangles(poly: &[u32], positions: &[[f64; 3]], out: &mut Vec<[u32; 3]>) {
+    let n = poly.len() as u32;
+    let corners: Vec<u32> = (0..n).collect();
+    // An index out of range makes the reader's split a fan; an empty list does the same here.
+    let points: Option<Vec<[f64; 3]>> = poly
+        .iter()
+        .map(|&v| positions.get(v as usize).copied())
+        .collect();
+    polygon::triangulate(&corners, points.as_deref().unwrap_or(&[]), out);
+}
+
+/// The corner of polygon item `face` at position `k` of the output (reversed polygons start at
+/// the same corner and run backwards, so a fan stays a fan).
+pub(crate) fn polygon_corner(n: usize, k: usize, reversed: bool) -> usize {
+    if reversed {
+        (n - k) % n
+    } else {
+        k
+    }
+}
+
+/// The normal (cross product, length twice the area) of a plan triangle at final positions.
+pub(crate) fn triangle_normal(plan: &Plan, mesh: &Mesh, t: &crate::repair::Triangle) -> [f64; 3] {
+    let [a, b, c] = t.corners.map(|c| plan.position(mesh, c.vertex));
+    cross(sub(b, a), sub(c, a))
+}
+
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Area-weighted normals of the final faces around every vertex a flipped triangle uses, keyed
+/// by `key(corner)` (the plan vertex for per-vertex normals; vertex and normal index for OBJ's
+/// per-corner normals). A stored normal whose dot product with its sum is negative disagrees
+/// with the new winding and is negated; vertices no flipped triangle touches are left alone.
+pub(crate) fn normal_sums<K: std::hash::Hash + Eq + Copy>(
+    plan: &Plan,
+    mesh: &Mesh,
+    key: impl Fn(&crate::repair::Corner) -> Option<K>,
+) -> FxHashMap<K, [f64; 3]> {
+    let mut sums: FxHashMap<K, [f64; 3]> = FxHashMap::default();
+    for t in plan.triangles.iter().filter(|t| t.flipped) {
+        for c in &t.corners {
+            if let Some(k) = key(c) {
+                sums.insert(k, [0.0; 3]);
+            }
+        }
+    }
+    if sums.is_empty() {
+        return sums;
+    }
+    for t in &plan.triangles {
+        let normal = triangle_normal(plan, mesh, t);
+        for c in &t.corners {
+            if let Some(sum) = key(c).and_then(|k| sums.get_mut(&k)) {
+                for i in 0..3 {
+                    sum[i] += normal[i];
+                }
+            }
+        }
+    }
+    sums
+}
+
+/// A number as the shortest text that reads back as the same value (`1` for 1.0).
+pub(crate) fn number(x: f64) -> String {
+    format!("{x}")
+}

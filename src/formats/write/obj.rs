@@ -1,0 +1,278 @@
+//! Repaired OBJ: every `v` that stays (copies of split vertices appended, dropped ones left out and
+//! the rest renumbered), every `vt` and `vn` (plus negated copies of normals that disagree with a
+//! flipped face), then the faces in order with `o`/`g`/`s`/`usemtl` re-emitted where they change.
+//! A polygon that survives whole is written as the polygon (reversed when flipped); otherwise its
+//! surviving triangles are. Hole fills follow the faces of their neighbour's group and material.
+//! `mtllib` is kept, and the libraries and the textures they name are copied next to the copy
+//! (only files inside the source's folder). Comments, points and lines are not kept.
+
+use std::fmt::Write as _;
+use std::path::{Component, Path, PathBuf};
+
+use super::{normal_sums, polygon_corner, renumber, write_atomic, Item, Polygons, WriteError};
+use crate::formats::obj::{read_full, State};
+use crate::formats::ReadContext;
+use crate::repair::Plan;
+
+pub fn write(
+    source: &Path,
+    plan: &Plan,
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<Vec<PathBuf>, WriteError> {
+    let (mesh, detail) = read_full(source, cx)?;
+    let polygons = Polygons::new(
+        detail
+            .faces
+            .iter()
+            .map(|f| f.corners.iter().map(|c| c.0).collect()),
+        &mesh,
+    )?;
+    let items = polygons.items(plan, &mesh);
+    let (index, _) = renumber(plan);
+
+    // The (v, vt, vn) of input corner `c`.
+    let corner_of = |c: u32| -> (Option<u32>, Option<u32>) {
+        let (f, k) = polygons.corner(c);
+        let corner = detail.faces[f].corners[k];
+        (corner.1, corner.2)
+    };
+
+    // Normals a flipped face's corners disagree with get a negated copy.
+    let sums = normal_sums(plan, &mesh, |c| {
+        corner_of(c.from).1.map(|vn| (c.vertex, vn))
+    });
+    let mut extra_normals: Vec<String> = Vec::new();
+    let mut negated: rustc_hash::FxHashMap<u32, u32> = Default::default();
+    let mut flip_normal = |vertex: u32, vn: u32| -> u32 {
+        let Some(sum) = sums.get(&(vertex, vn)) else {
+            return vn;
+        };
+        let Some(n) = parse3(&detail.normals[vn as usize]) else {
+            return vn;
+        };
+        if super::dot(n, *sum) >= 0.0 {
+            return vn;
+        }
+        *negated.entry(vn).or_insert_with(|| {
+            extra_normals.push(format!(
+                "{} {} {}",
+                super::number(-n[0]),
+                super::number(-n[1]),
+                super::number(-n[2])
+            ));
+            (detail.normals.len() + extra_normals.len() - 1) as u32
+        })
+    };
+
+    // Faces first (they decide the extra normals), in groups: fills after their neighbour's block.
+    let block_of_face: Vec<u32> = detail.faces.iter().map(|f| f.state).collect();
+    let mut ordered: Vec<(u32, usize, Item)> = items
+        .iter()
+        .enumerate()
+        .map(|(k, &item)| {
+            let block = match item {
+                Item::Polygon { face, .. } => block_of_face[face],
+                Item::Triangle(i) => block_of_face[polygons.of(&plan.triangles[i])],
+            };
+            let fill = matches!(item, Item::Triangle(i) if plan.triangles[i].source.is_none());
+            // Blocks are runs in file order: kept faces stay in order, fills go to the end of
+            // their neighbour's run.
+            (block, if fill { usize::MAX } else { k }, item)
+        })
+        .collect();
+    ordered.sort_by_key(|&(block, k, _)| (block, k));
+
+    let mut faces = String::new();
+    let mut state = State::default();
+    let mut corner_text = |faces: &mut String, v: u32, vt: Option<u32>, vn: Option<u32>| {
+        let _ = write!(faces, " {}", index[v as usize] + 1);
+        match (vt, vn) {
+            (None, None) => {}
+            (Some(t), None) => {
+                let _ = write!(faces, "/{}", t + 1);
+            }
+            (None, Some(n)) => {
+                let _ = write!(faces, "//{}", flip_normal(v, n) + 1);
+            }
+            (Some(t), Some(n)) => {
+                let _ = write!(faces, "/{}/{}", t + 1, flip_normal(v, n) + 1);
+            }
+        }
+    };
+    for &(block, _, item) in &ordered {
+        let wanted = &detail.states[block as usize];
+        switch_state(&mut faces, &mut state, wanted);
+        faces.push('f');
+        match item {
+            Item::Polygon { face, reversed } => {
+                let corners = &detail.faces[face].corners;
+                let n = corners.len();
+                for k in 0..n {
+                    let (v, vt, vn) = corners[polygon_corner(n, k, reversed)];
+                    corner_text(&mut faces, v, vt, vn);
+                }
+            }
+            Item::Triangle(i) => {
+                for c in &plan.triangles[i].corners {
+                    let (vt, vn) = corner_of(c.from);
+                    corner_text(&mut faces, c.vertex, vt, vn);
+                }
+            }
+        }
+        faces.push('\n');
+    }
+
+    let mut text = String::with_capacity(faces.len() * 2);
+    text.push_str("# repaired by meshvet");
+    if plan.changes() {
+        let _ = write!(text, ": {}", plan.summary());
+    }
+    text.push('\n');
+    for lib in &detail.mtllibs {
+        let _ = writeln!(text, "mtllib {lib}");
+    }
+    for (v, &used) in plan.used_vertices.iter().enumerate() {
+        if !used {
+            continue;
+        }
+        let p = plan.position(&mesh, v as u32);
+        let from = super::original(plan, &mesh, v as u32) as usize;
+        let _ = write!(
+            text,
+            "v {} {} {}",
+            super::number(p[0]),
+            super::number(p[1]),
+            super::number(p[2])
+        );
+        match detail.vertex_extra.get(from) {
+            Some(extra) if !extra.is_empty() => {
+                let _ = writeln!(text, " {extra}");
+            }
+            _ => text.push('\n'),
+        }
+    }
+    for vt in &detail.texcoords {
+        let _ = writeln!(text, "vt {vt}");
+    }
+    for vn in detail.normals.iter().chain(&extra_normals) {
+        let _ = writeln!(text, "vn {vn}");
+    }
+    text.push_str(&faces);
+    write_atomic(out, text.as_bytes())?;
+
+    copy_materials(source, out, &detail.mtllibs)
+}
+
+fn parse3(text: &str) -> Option<[f64; 3]> {
+    let mut w = text.split_ascii_whitespace().map(|w| w.parse::<f64>().ok());
+    Some([w.next()??, w.next()??, w.next()??])
+}
+
+/// Emits the statements that change `state` into `wanted`.
+fn switch_state(out: &mut String, state: &mut State, wanted: &State) {
+    let mut emit =
+        |keyword: &str, have: &mut Option<String>, want: &Option<String>, reset: &str| {
+            if have != want {
+                match want {
+                    Some(v) => {
+                        let _ = writeln!(out, "{keyword} {v}");
+                    }
+                    None if !reset.is_empty() => {
+                        let _ = writeln!(out, "{keyword} {reset}");
+                    }
+                    None => {
+                        let _ = writeln!(out, "{keyword}");
+                    }
+                }
+                *have = want.clone();
+            }
+        };
+    emit("o", &mut state.object, &wanted.object, "");
+    emit("g", &mut state.group, &wanted.group, "");
+    emit("usemtl", &mut state.material, &wanted.material, "");
+    emit("s", &mut state.smoothing, &wanted.smoothing, "off");
+}
+
+/// Copies each material library, and the texture files it names, next to the copy (same relative
+/// names), when they are files inside the source's folder.
+fn copy_materials(
+    source: &Path,
+    out: &Path,
+    mtllibs: &[String],
+) -> Result<Vec<PathBuf>, WriteError> {
+    let from = source.parent().unwrap_or(Path::new(""));
+    let to = out.parent().unwrap_or(Path::new(""));
+    let mut written = Vec::new();
+    for lib in mtllibs {
+        let names: Vec<&str> = if from.join(lib).is_file() {
+            vec![lib.as_str()]
+        } else {
+            lib.split_ascii_whitespace().collect()
+        };
+        for name in names {
+            let Some(rel) = inside(name) else { continue };
+            let path = from.join(&rel);
+            let Ok(bytes) = std::fs::read(&path) else {
+                continue; // a missing .mtl was a note when scanned; the copy is as good as the source
+            };
+            write_atomic(&to.join(&rel), &bytes)?;
+            written.push(to.join(&rel));
+            let mtl_folder = rel.parent().map(Path::to_path_buf).unwrap_or_default();
+            for texture in textures(&String::from_utf8_lossy(&bytes)) {
+                let Some(t) = inside(&texture) else { continue };
+                let rel = mtl_folder.join(t);
+                // Only inside the source's folder, after `..` in the library's own folder.
+                let Some(rel) = inside(&rel.to_string_lossy()) else {
+                    continue;
+                };
+                let path = from.join(&rel);
+                if path.is_file() {
+                    super::copy_beside(&path, &to.join(&rel))?;
+                    written.push(to.join(&rel));
+                }
+            }
+        }
+    }
+    Ok(written)
+}
+
+/// A relative path that stays inside its folder, normalised; `None` otherwise.
+fn inside(name: &str) -> Option<PathBuf> {
+    let name = name.replace('\\', "/");
+    let mut out = PathBuf::new();
+    for c in Path::new(&name).components() {
+        match c {
+            Component::Normal(part) => out.push(part),
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if !out.pop() {
+                    return None;
+                }
+            }
+            Component::RootDir | Component::Prefix(_) => return None,
+        }
+    }
+    (!out.as_os_str().is_empty() && !name.contains(':')).then_some(out)
+}
+
+/// The texture file names of an MTL (`map_*`, `bump`, `disp`, `decal`, `refl`), option flags
+/// skipped: the last word is the file name (names with spaces are rare).
+fn textures(mtl: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in mtl.lines() {
+        let mut words = line.split_ascii_whitespace();
+        let Some(key) = words.next() else { continue };
+        let key = key.to_ascii_lowercase();
+        if key.starts_with("map_")
+            || matches!(key.as_str(), "bump" | "disp" | "decal" | "refl" | "norm")
+        {
+            if let Some(last) = words.last() {
+                if !out.iter().any(|t| t == last) {
+                    out.push(last.to_string());
+                }
+            }
+        }
+    }
+    out
+}

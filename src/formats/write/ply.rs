@@ -1,0 +1,468 @@
+//! Repaired PLY: same encoding (ASCII, binary little or big endian), same header (comments and
+//! `obj_info` kept, element counts updated), every vertex and face property kept. A vertex copy
+//! duplicates its vertex's properties at the new position; a face keeps its own properties, a
+//! hole fill takes its neighbour's; per-corner face lists (`texcoord` with 2 values a corner)
+//! follow their corners. Normals (`nx ny nz`) that disagree with a flipped face are negated.
+//! Other elements are copied unchanged.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use ply_rs_bw::ply::{ElementDef, Encoding, PropertyType, ScalarType};
+
+use super::{normal_sums, polygon_corner, renumber, write_atomic, Item, Polygons, WriteError};
+use crate::formats::{ply::header, read, Format, ReadContext};
+use crate::repair::Plan;
+
+/// The records of one element: record `i` is `values[starts[i]..starts[i + 1]]`, a list stored as
+/// its length then its items. Every PLY number fits an f64 exactly.
+struct Element {
+    def: ElementDef,
+    starts: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl Element {
+    fn record(&self, i: usize) -> &[f64] {
+        &self.values[self.starts[i]..self.starts[i + 1]]
+    }
+}
+
+pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
+    let bytes = std::fs::read(source)?;
+    let mesh = read(source, Format::Ply, cx)?
+        .pop()
+        .ok_or_else(|| WriteError::new("the PLY reader returned no mesh"))?;
+    let (text, header, start) = header(&bytes)?;
+    let elements = parse_body(&bytes[start..], &header)?;
+    let face_element = elements.iter().find(|e| e.def.name == "face");
+    let index_key = face_element.and_then(|e| {
+        ["vertex_indices", "vertex_index"]
+            .into_iter()
+            .find(|k| e.def.properties.contains_key(*k))
+    });
+    let index_slot = |e: &Element| {
+        e.def
+            .properties
+            .keys()
+            .position(|k| Some(k.as_str()) == index_key)
+    };
+
+    // Face polygons, as the reader split them.
+    let polygons = match face_element {
+        Some(e) => {
+            let slot = index_slot(e).unwrap_or(0);
+            Polygons::new((0..e.def.count).map(|i| list(e, i, slot)), &mesh)?
+        }
+        None => Polygons::new(std::iter::empty(), &mesh)?,
+    };
+    let items = polygons.items(plan, &mesh);
+    let (index, kept) = renumber(plan);
+
+    let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
+    let sums = normal_sums(plan, &mesh, |c| Some(c.vertex));
+
+    let mut body = Body::new(header.encoding);
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for e in &elements {
+        match e.def.name.as_str() {
+            "vertex" => {
+                let xyz = ["x", "y", "z"].map(|k| slot_of(e, k));
+                let normal = ["nx", "ny", "nz"].map(|k| slot_of(e, k));
+                for (v, &used) in plan.used_vertices.iter().enumerate() {
+                    if !used {
+                        continue;
+                    }
+                    let from = super::original(plan, &mesh, v as u32) as usize;
+                    let mut record = e.record(from).to_vec();
+                    let p = plan.position(&mesh, v as u32);
+                    for (k, slot) in xyz.iter().enumerate() {
+                        if let Some(s) = slot {
+                            let at = scalar_at(e, &record, *s);
+                            record[at] = p[k];
+                        }
+                    }
+                    if let (Some(sum), [Some(a), Some(b), Some(c)]) =
+                        (sums.get(&(v as u32)), normal)
+                    {
+                        let at = [a, b, c].map(|s| scalar_at(e, &record, s));
+                        let n = at.map(|i| record[i]);
+                        if super::dot(n, *sum) < 0.0 {
+                            for i in at {
+                                record[i] = -record[i];
+                            }
+                        }
+                    }
+                    body.record(&e.def, &record);
+                }
+                counts.push((e.def.name.clone(), kept));
+            }
+            "face" => {
+                let slot = index_slot(e).unwrap_or(0);
+                for item in &items {
+                    // (polygon whose properties are used, its corners in output order, vertices)
+                    let (face, corners, vertices): (usize, Vec<usize>, Vec<u32>) = match *item {
+                        Item::Polygon { face, reversed } => {
+                            let poly = list(e, face, slot);
+                            let n = poly.len();
+                            let corners: Vec<usize> =
+                                (0..n).map(|k| polygon_corner(n, k, reversed)).collect();
+                            let vertices = corners.iter().map(|&k| poly[k]).collect();
+                            (face, corners, vertices)
+                        }
+                        Item::Triangle(i) => {
+                            let t = &plan.triangles[i];
+                            let face = polygons.of(t);
+                            let corners = t
+                                .corners
+                                .iter()
+                                .map(|c| polygons.corner(c.from).1)
+                                .collect();
+                            let vertices = t.corners.iter().map(|c| c.vertex).collect();
+                            (face, corners, vertices)
+                        }
+                    };
+                    let record = face_record(
+                        e, face, slot, &corners, &vertices, &index, item, plan, &polygons,
+                    );
+                    body.record(&e.def, &record);
+                }
+                counts.push((e.def.name.clone(), items.len()));
+            }
+            _ => {
+                for i in 0..e.def.count {
+                    body.record(&e.def, e.record(i));
+                }
+                counts.push((e.def.name.clone(), e.def.count));
+            }
+        }
+    }
+
+    let mut out_bytes = rewrite_counts(&text, &counts).into_bytes();
+    out_bytes.extend_from_slice(&body.bytes);
+    write_atomic(out, &out_bytes)
+}
+
+/// A face record: the properties of source face `face` with the index list replaced by
+/// `vertices` (renumbered) and per-corner lists reordered by `corners`.
+#[allow(clippy::too_many_arguments)]
+fn face_record(
+    e: &Element,
+    face: usize,
+    slot: usize,
+    corners: &[usize],
+    vertices: &[u32],
+    index: &[u32],
+    item: &Item,
+    plan: &Plan,
+    polygons: &Polygons,
+) -> Vec<f64> {
+    let source = e.record(face);
+    let n_source = list(e, face, slot).len();
+    let mut out = Vec::with_capacity(source.len());
+    let mut at = 0;
+    for (k, (_, p)) in e.def.properties.iter().enumerate() {
+        match p.data_type {
+            PropertyType::Scalar(_) => {
+                out.push(source[at]);
+                at += 1;
+            }
+            PropertyType::List(..) => {
+                let len = source[at] as usize;
+                let items = &source[at + 1..at + 1 + len];
+                at += 1 + len;
+                if k == slot {
+                    out.push(vertices.len() as f64);
+                    out.extend(vertices.iter().map(|&v| index[v as usize] as f64));
+                } else if n_source > 0 && len > 0 && len % n_source == 0 {
+                    // Per-corner values: each output corner takes its own corner's values (a
+                    // fill's corner, those of the neighbour face it came from).
+                    let stride = len / n_source;
+                    out.push((stride * corners.len()) as f64);
+                    for (j, &c) in corners.iter().enumerate() {
+                        let values = match item {
+                            Item::Triangle(i) => {
+                                let from = plan.triangles[*i].corners[j].from;
+                                let (f, k) = polygons.corner(from);
+                                if f == face {
+                                    &items[stride * c..stride * (c + 1)]
+                                } else {
+                                    let other = per_corner(e, f, k, slot);
+                                    out.extend_from_slice(
+                                        other
+                                            .get(p.name.as_str())
+                                            .map_or(&[][..], |v| v.as_slice()),
+                                    );
+                                    continue;
+                                }
+                            }
+                            Item::Polygon { .. } => &items[stride * c..stride * (c + 1)],
+                        };
+                        out.extend_from_slice(values);
+                    }
+                } else {
+                    out.push(len as f64);
+                    out.extend_from_slice(items);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The per-corner list values of corner `k` of face `f`, by property name.
+fn per_corner(
+    e: &Element,
+    f: usize,
+    k: usize,
+    slot: usize,
+) -> std::collections::HashMap<&str, Vec<f64>> {
+    let source = e.record(f);
+    let n = list(e, f, slot).len();
+    let mut out = std::collections::HashMap::new();
+    let mut at = 0;
+    for (j, (name, p)) in e.def.properties.iter().enumerate() {
+        match p.data_type {
+            PropertyType::Scalar(_) => at += 1,
+            PropertyType::List(..) => {
+                let len = source[at] as usize;
+                if j != slot && n > 0 && len > 0 && len % n == 0 {
+                    let stride = len / n;
+                    out.insert(
+                        name.as_str(),
+                        source[at + 1 + stride * k..at + 1 + stride * (k + 1)].to_vec(),
+                    );
+                }
+                at += 1 + len;
+            }
+        }
+    }
+    out
+}
+
+/// The integer list in property slot `slot` of record `i`.
+fn list(e: &Element, i: usize, slot: usize) -> Vec<u32> {
+    let r = e.record(i);
+    let mut at = 0;
+    for (k, (_, p)) in e.def.properties.iter().enumerate() {
+        let width = match p.data_type {
+            PropertyType::Scalar(_) => 1,
+            PropertyType::List(..) => 1 + r[at] as usize,
+        };
+        if k == slot {
+            return r[at + 1..at + width].iter().map(|&x| x as u32).collect();
+        }
+        at += width;
+    }
+    Vec::new()
+}
+
+/// The index in `record` of the value of scalar property slot `slot`.
+fn scalar_at(e: &Element, record: &[f64], slot: usize) -> usize {
+    let mut at = 0;
+    for (_, p) in e.def.properties.iter().take(slot) {
+        at += match p.data_type {
+            PropertyType::Scalar(_) => 1,
+            PropertyType::List(..) => 1 + record[at] as usize,
+        };
+    }
+    at
+}
+
+/// The header text with each element's count replaced.
+fn rewrite_counts(header: &str, counts: &[(String, usize)]) -> String {
+    let mut out = String::with_capacity(header.len() + 16);
+    for line in header.lines() {
+        let words: Vec<&str> = line.split(' ').collect();
+        if words.len() == 3 && words[0] == "element" {
+            if let Some((_, n)) = counts.iter().find(|(name, _)| name == words[1]) {
+                let _ = writeln!(out, "element {} {n}", words[1]);
+                continue;
+            }
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
+}
+
+fn parse_body(body: &[u8], header: &ply_rs_bw::ply::Header) -> Result<Vec<Element>, WriteError> {
+    let mut elements = Vec::new();
+    let mut reader = Reader {
+        rest: body,
+        encoding: header.encoding,
+    };
+    for def in header.elements.values() {
+        let mut e = Element {
+            def: def.clone(),
+            starts: vec![0],
+            values: Vec::new(),
+        };
+        for i in 0..def.count {
+            reader.record(def, &mut e.values).ok_or_else(|| {
+                WriteError::new(format!("PLY {} {i} could not be read again", def.name))
+            })?;
+            e.starts.push(e.values.len());
+        }
+        elements.push(e);
+    }
+    Ok(elements)
+}
+
+struct Reader<'a> {
+    rest: &'a [u8],
+    encoding: Encoding,
+}
+
+impl Reader<'_> {
+    fn record(&mut self, def: &ElementDef, out: &mut Vec<f64>) -> Option<()> {
+        if self.encoding == Encoding::Ascii {
+            let line = loop {
+                if self.rest.is_empty() {
+                    return None;
+                }
+                let end = self
+                    .rest
+                    .iter()
+                    .position(|&b| b == b'\n' || b == b'\r')
+                    .unwrap_or(self.rest.len());
+                let line = &self.rest[..end];
+                let crlf = self.rest.get(end..end + 2) == Some(b"\r\n");
+                self.rest = self.rest.get(end + 1 + usize::from(crlf)..).unwrap_or(&[]);
+                if !line.trim_ascii().is_empty() {
+                    break line;
+                }
+            };
+            let text = std::str::from_utf8(line).ok()?;
+            let mut tokens = text.split_ascii_whitespace();
+            for p in def.properties.values() {
+                match p.data_type {
+                    PropertyType::Scalar(_) => out.push(tokens.next()?.parse().unwrap_or(f64::NAN)),
+                    PropertyType::List(..) => {
+                        let n: usize = tokens.next()?.parse().ok()?;
+                        out.push(n as f64);
+                        for _ in 0..n {
+                            out.push(tokens.next()?.parse().unwrap_or(f64::NAN));
+                        }
+                    }
+                }
+            }
+            return Some(());
+        }
+        let big = self.encoding == Encoding::BinaryBigEndian;
+        for p in def.properties.values() {
+            match &p.data_type {
+                PropertyType::Scalar(t) => out.push(self.scalar(t, big)?),
+                PropertyType::List(count, item) => {
+                    let n = self.scalar(count, big)?;
+                    out.push(n);
+                    for _ in 0..n as usize {
+                        out.push(self.scalar(item, big)?);
+                    }
+                }
+            }
+        }
+        Some(())
+    }
+
+    fn scalar(&mut self, t: &ScalarType, big: bool) -> Option<f64> {
+        let size = size(t);
+        let b = self.rest.get(..size)?;
+        self.rest = &self.rest[size..];
+        let mut a = [0u8; 8];
+        a[..size].copy_from_slice(b);
+        if big {
+            a[..size].reverse();
+        }
+        Some(match t {
+            ScalarType::Char => a[0] as i8 as f64,
+            ScalarType::UChar => a[0] as f64,
+            ScalarType::Short => i16::from_le_bytes([a[0], a[1]]) as f64,
+            ScalarType::UShort => u16::from_le_bytes([a[0], a[1]]) as f64,
+            ScalarType::Int => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            ScalarType::UInt => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            ScalarType::Float => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            ScalarType::Double => f64::from_le_bytes(a),
+        })
+    }
+}
+
+fn size(t: &ScalarType) -> usize {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// The payload being written.
+struct Body {
+    encoding: Encoding,
+    bytes: Vec<u8>,
+}
+
+impl Body {
+    fn new(encoding: Encoding) -> Body {
+        Body {
+            encoding,
+            bytes: Vec::new(),
+        }
+    }
+
+    fn record(&mut self, def: &ElementDef, values: &[f64]) {
+        let mut at = 0;
+        let mut first = true;
+        for p in def.properties.values() {
+            match &p.data_type {
+                PropertyType::Scalar(t) => {
+                    self.value(t, values[at], &mut first);
+                    at += 1;
+                }
+                PropertyType::List(count, item) => {
+                    let n = values[at] as usize;
+                    self.value(count, n as f64, &mut first);
+                    for &v in &values[at + 1..at + 1 + n] {
+                        self.value(item, v, &mut first);
+                    }
+                    at += 1 + n;
+                }
+            }
+        }
+        if self.encoding == Encoding::Ascii {
+            self.bytes.push(b'\n');
+        }
+    }
+
+    fn value(&mut self, t: &ScalarType, v: f64, first: &mut bool) {
+        match self.encoding {
+            Encoding::Ascii => {
+                if !*first {
+                    self.bytes.push(b' ');
+                }
+                *first = false;
+                let text = match t {
+                    ScalarType::Float | ScalarType::Double => super::number(v),
+                    _ => format!("{}", v as i64),
+                };
+                self.bytes.extend_from_slice(text.as_bytes());
+            }
+            Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
+                let mut b: Vec<u8> = match t {
+                    ScalarType::Char => vec![v as i8 as u8],
+                    ScalarType::UChar => vec![v as u8],
+                    ScalarType::Short => (v as i16).to_le_bytes().to_vec(),
+                    ScalarType::UShort => (v as u16).to_le_bytes().to_vec(),
+                    ScalarType::Int => (v as i32).to_le_bytes().to_vec(),
+                    ScalarType::UInt => (v as u32).to_le_bytes().to_vec(),
+                    ScalarType::Float => (v as f32).to_le_bytes().to_vec(),
+                    ScalarType::Double => v.to_le_bytes().to_vec(),
+                };
+                if self.encoding == Encoding::BinaryBigEndian {
+                    b.reverse();
+                }
+                self.bytes.extend_from_slice(&b);
+            }
+        }
+    }
+}

@@ -1,0 +1,88 @@
+//! Repaired STL: binary stays binary (the 80-byte header kept, each surviving facet's attribute
+//! word kept, 0 for hole fills), ASCII stays ASCII under the first solid's name. Facet normals are
+//! recomputed from the final winding. STL stores no shared vertices, so copies and dropped
+//! vertices need nothing.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::{cross, sub, write_atomic, WriteError};
+use crate::formats::{read, Format, ReadContext};
+use crate::repair::Plan;
+
+pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
+    let bytes = std::fs::read(source)?;
+    let mesh = read(source, Format::Stl, cx)?
+        .pop()
+        .ok_or_else(|| WriteError::new("the STL reader returned no mesh"))?;
+    let binary = binary_count(&bytes).is_some();
+    let facets: Vec<([f32; 3], [[f64; 3]; 3], u16)> = plan
+        .triangles
+        .iter()
+        .map(|t| {
+            // Binary stores f32: the normal is taken from the positions as they will be stored.
+            let p = t.corners.map(|c| plan.position(&mesh, c.vertex));
+            let wide = if binary {
+                p.map(|q| q.map(|x| x as f32 as f64))
+            } else {
+                p
+            };
+            let n = cross(sub(wide[1], wide[0]), sub(wide[2], wide[0]));
+            let len = super::dot(n, n).sqrt();
+            let n = if len > 0.0 && len.is_finite() {
+                n.map(|x| (x / len) as f32)
+            } else {
+                [0.0; 3]
+            };
+            let attribute = match t.source {
+                Some(s) if binary => {
+                    let at = 84 + 50 * s as usize + 48;
+                    u16::from_le_bytes([bytes[at], bytes[at + 1]])
+                }
+                _ => 0,
+            };
+            (n, p, attribute)
+        })
+        .collect();
+    let data = if binary {
+        let mut b = Vec::with_capacity(84 + 50 * facets.len());
+        b.extend_from_slice(&bytes[..80]);
+        b.extend_from_slice(&(facets.len() as u32).to_le_bytes());
+        for (n, p, attribute) in &facets {
+            let stored = p.iter().flatten().map(|&x| x as f32);
+            for x in n.iter().copied().chain(stored) {
+                b.extend_from_slice(&x.to_le_bytes());
+            }
+            b.extend_from_slice(&attribute.to_le_bytes());
+        }
+        b
+    } else {
+        let name = solid_name(&bytes);
+        let mut s = String::with_capacity(250 * facets.len());
+        let _ = writeln!(s, "solid {name}");
+        for (n, p, _) in &facets {
+            let _ = writeln!(s, "  facet normal {} {} {}", n[0], n[1], n[2]);
+            s.push_str("    outer loop\n");
+            for q in p {
+                let _ = writeln!(s, "      vertex {} {} {}", q[0], q[1], q[2]);
+            }
+            s.push_str("    endloop\n  endfacet\n");
+        }
+        let _ = writeln!(s, "endsolid {name}");
+        s.into_bytes()
+    };
+    write_atomic(out, &data)
+}
+
+/// The facet count of a binary STL (the reader's test: the size is exactly `84 + 50 n`).
+fn binary_count(bytes: &[u8]) -> Option<usize> {
+    let n = u32::from_le_bytes(bytes.get(80..84)?.try_into().ok()?) as u64;
+    (84 + 50 * n == bytes.len() as u64).then_some(n as usize)
+}
+
+/// The name after the first `solid`, trimmed.
+fn solid_name(bytes: &[u8]) -> String {
+    let text = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
+    let line = text.trim_start().lines().next().unwrap_or("");
+    line.get(5..).unwrap_or("").trim().to_string()
+}

@@ -1,0 +1,995 @@
+//! Repaired copies written by `formats::write`: for each format a small hand-made file (textured or
+//! coloured where the format allows) and a hand-built plan (two faces flipped, one dropped and
+//! added back as a fill, a vertex copy, an unreferenced vertex dropped). The copy is read back
+//! through `formats::read` and must hold exactly `plan.apply(&mesh)` (up to vertex numbering) with
+//! its attributes; sources are hashed before and after and must not change.
+
+use std::collections::hash_map::DefaultHasher;
+use std::collections::{BTreeMap, BTreeSet};
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+
+use meshvet::formats::write::write_repaired;
+use meshvet::formats::{read, Format, Limits, ReadContext};
+use meshvet::repair::{Corner, Kind, NewVertex, Plan, Triangle};
+use meshvet::Mesh;
+use serde_json::{json, Value};
+
+fn cx(root: &Path) -> ReadContext {
+    ReadContext {
+        root: root.to_path_buf(),
+        limits: Limits::default(),
+    }
+}
+
+/// Every file under `dir` with a hash of its bytes.
+fn hash_tree(dir: &Path) -> BTreeMap<PathBuf, u64> {
+    let mut out = BTreeMap::new();
+    for entry in walkdir::WalkDir::new(dir).into_iter().flatten() {
+        if entry.file_type().is_file() {
+            let mut h = DefaultHasher::new();
+            std::fs::read(entry.path()).unwrap().hash(&mut h);
+            out.insert(entry.path().to_path_buf(), h.finish());
+        }
+    }
+    out
+}
+
+fn identity(mesh: &Mesh) -> Plan {
+    Plan {
+        triangles: mesh
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(t, tri)| Triangle {
+                corners: [0, 1, 2].map(|k| Corner {
+                    vertex: tri[k],
+                    from: 3 * t as u32 + k as u32,
+                }),
+                source: Some(t as u32),
+                near: t as u32,
+                flipped: false,
+            })
+            .collect(),
+        new_vertices: Vec::new(),
+        used_vertices: vec![true; mesh.positions.len()],
+        done: Vec::new(),
+        not_repairable: Vec::new(),
+    }
+}
+
+fn flip(t: &mut Triangle) {
+    t.corners.swap(1, 2);
+    t.flipped = !t.flipped;
+}
+
+/// Flips `flips`, gives corner 0 of triangle `copy` a copy of its vertex (moved a little), drops
+/// triangle `drop` and adds it back at the end as a fill near `near`, and drops every vertex no
+/// triangle uses.
+fn hand_plan(mesh: &Mesh, flips: &[usize], copy: usize, drop: usize, near: u32) -> Plan {
+    let mut p = identity(mesh);
+    for &t in flips {
+        flip(&mut p.triangles[t]);
+    }
+    let v = p.triangles[copy].corners[0].vertex;
+    let q = mesh.positions[v as usize];
+    p.new_vertices.push(NewVertex {
+        copy_of: v,
+        position: [q[0] + 0.125, q[1] + 0.25, q[2] - 0.125],
+    });
+    p.triangles[copy].corners[0].vertex = mesh.positions.len() as u32;
+    let mut fill = p.triangles.remove(drop);
+    fill.source = None;
+    fill.near = near;
+    p.triangles.push(fill);
+    p.used_vertices = vec![false; mesh.positions.len() + 1];
+    for t in &p.triangles {
+        for c in &t.corners {
+            p.used_vertices[c.vertex as usize] = true;
+        }
+    }
+    let unused = p.used_vertices.iter().filter(|u| !**u).count();
+    p.done = vec![(Kind::OrientFaces, flips.len(), None)];
+    if unused > 0 {
+        p.done.push((Kind::DropUnreferencedVertices, unused, None));
+    }
+    p
+}
+
+/// The triangles as position triples (f32 bits, as most formats store them), each rotated to
+/// start at its smallest corner, sorted: equal for two meshes that differ only in vertex
+/// numbering, triangle order or corner rotation.
+fn shape(m: &Mesh) -> Vec<[[u32; 3]; 3]> {
+    let mut out: Vec<[[u32; 3]; 3]> = m
+        .triangles
+        .iter()
+        .map(|t| {
+            // NaN is NaN whatever its sign bit (text formats do not keep it).
+            let bits = |x: f64| {
+                if x.is_nan() {
+                    f32::NAN.to_bits()
+                } else {
+                    (x as f32).to_bits()
+                }
+            };
+            let p = t.map(|v| m.positions[v as usize].map(bits));
+            let k = (0..3).min_by_key(|&k| p[k]).unwrap();
+            [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
+        })
+        .collect();
+    out.sort();
+    out
+}
+
+/// Writes `plan` for `source` to `out`, checks the source tree is untouched and the copy holds
+/// the planned triangles; returns the source mesh and the copy's meshes.
+fn round_trip(
+    source: &Path,
+    format: Format,
+    plans: &[Option<Plan>],
+    out: &Path,
+) -> (Vec<Mesh>, Vec<Mesh>) {
+    let root = source.parent().unwrap();
+    let c = cx(root);
+    let before = hash_tree(root);
+    let meshes = read(source, format, &c).unwrap();
+    let written = write_repaired(source, format, plans, out, &c).unwrap();
+    assert_eq!(written[0], out);
+    assert_eq!(before, hash_tree(root), "the source tree changed");
+    let copy = read(out, format, &cx(out.parent().unwrap())).unwrap();
+    assert_eq!(copy.len(), meshes.len());
+    for ((mesh, plan), again) in meshes.iter().zip(plans).zip(&copy) {
+        let expected = match plan {
+            Some(plan) => plan.apply(mesh),
+            None => mesh.clone(),
+        };
+        assert_eq!(shape(again), shape(&expected));
+    }
+    (meshes, copy)
+}
+
+fn dirs() -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path().join("src");
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(src.join("tex")).unwrap();
+    (dir, src, out)
+}
+
+/// Unit cube corners and its six outward quads (counter-clockwise seen from outside).
+const CUBE: [[f64; 3]; 8] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 1.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [1.0, 0.0, 1.0],
+    [1.0, 1.0, 1.0],
+    [0.0, 1.0, 1.0],
+];
+const QUADS: [[u32; 4]; 6] = [
+    [0, 3, 2, 1],
+    [4, 5, 6, 7],
+    [0, 1, 5, 4],
+    [2, 3, 7, 6],
+    [0, 4, 7, 3],
+    [1, 2, 6, 5],
+];
+const NORMALS: [[i32; 3]; 6] = [
+    [0, 0, -1],
+    [0, 0, 1],
+    [0, -1, 0],
+    [0, 1, 0],
+    [-1, 0, 0],
+    [1, 0, 0],
+];
+
+fn lines_with<'a>(text: &'a str, keyword: &str) -> Vec<&'a str> {
+    text.lines()
+        .filter(|l| l.split_whitespace().next() == Some(keyword))
+        .collect()
+}
+
+/// A textured OBJ cube in two groups and materials, with an unreferenced vertex; quad 0 flipped
+/// whole (written back as the reversed quad), one triangle of quad 1 flipped (written as
+/// triangles), one triangle of quad 2 dropped and filled, a vertex copy on quad 3.
+#[test]
+fn obj_keeps_uvs_normals_groups_and_materials() {
+    let (_dir, src, out) = dirs();
+    let mut obj = String::from("# test cube\nmtllib cube.mtl\n");
+    for p in CUBE {
+        obj += &format!("v {} {} {} 0.5 0.5 0.5\n", p[0], p[1], p[2]);
+    }
+    obj += "v 9 9 9\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n";
+    for n in NORMALS {
+        obj += &format!("vn {} {} {}\n", n[0], n[1], n[2]);
+    }
+    obj += "o cube\ng sides\nusemtl red\ns 1\n";
+    for (f, q) in QUADS.iter().enumerate() {
+        if f == 4 {
+            obj += "g top\nusemtl blue\n";
+        }
+        obj += "f";
+        for (k, v) in q.iter().enumerate() {
+            obj += &format!(" {}/{}/{}", v + 1, k + 1, f + 1);
+        }
+        obj += "\n";
+    }
+    std::fs::write(src.join("cube.obj"), &obj).unwrap();
+    std::fs::write(
+        src.join("cube.mtl"),
+        "newmtl red\nKd 1 0 0\nmap_Kd -s 1 1 1 tex/red.png\nnewmtl blue\nKd 0 0 1\nmap_Kd ../../etc/passwd\n",
+    )
+    .unwrap();
+    std::fs::write(src.join("tex/red.png"), b"not really a png").unwrap();
+
+    let mesh = read(&src.join("cube.obj"), Format::Obj, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
+    let copy_path = out.join("cube.obj");
+    let (_, copy) = round_trip(
+        &src.join("cube.obj"),
+        Format::Obj,
+        &[Some(plan.clone())],
+        &copy_path,
+    );
+    // Vertices: 8 kept + 1 copy, the unreferenced one dropped.
+    assert_eq!(copy[0].positions.len(), 9);
+    let text = std::fs::read_to_string(&copy_path).unwrap();
+    assert_eq!(lines_with(&text, "vt").len(), 4, "{text}");
+    // Quad 0 flipped whole: its normal (0 0 -1) now disagrees with the winding and gets a
+    // negated copy; quad 1's flipped triangle negates its normal at the corner only it uses.
+    let vn = lines_with(&text, "vn");
+    assert_eq!(vn.len(), 8, "{text}");
+    assert!(
+        vn.contains(&"vn 0 0 1") && vn.contains(&"vn -0 -0 1"),
+        "{vn:?}"
+    );
+    assert!(vn.contains(&"vn -0 -0 -1"), "{vn:?}");
+    // Vertex colours kept, also on the copy.
+    assert_eq!(
+        lines_with(&text, "v")
+            .iter()
+            .filter(|l| l.ends_with("0.5 0.5 0.5"))
+            .count(),
+        9
+    );
+    assert_eq!(lines_with(&text, "usemtl"), ["usemtl red", "usemtl blue"]);
+    assert_eq!(lines_with(&text, "g"), ["g sides", "g top"]);
+    assert_eq!(lines_with(&text, "o"), ["o cube"]);
+    assert_eq!(lines_with(&text, "mtllib"), ["mtllib cube.mtl"]);
+    // Quad 0 is one reversed quad with its own corners; quads 3-5 whole; 1 and 2 as triangles.
+    let faces = lines_with(&text, "f");
+    assert_eq!(faces[0], "f 1/1/7 2/4/7 3/3/7 4/2/7", "{text}");
+    assert_eq!(
+        faces
+            .iter()
+            .filter(|f| f.split_whitespace().count() == 5)
+            .count(),
+        3,
+        "{text}"
+    );
+    assert_eq!(faces.len(), 3 + 6);
+    // The fill comes right after the rest of its group (sides), before `g top`.
+    let fill_at = text.find("g top").unwrap();
+    assert!(
+        text[..fill_at]
+            .trim_end()
+            .ends_with("\nf 1/1/3 2/2/3 6/3/3"),
+        "{text}"
+    );
+    // Material library and the texture it names are copied; the path out of the folder is not.
+    assert!(out.join("cube.mtl").is_file() && out.join("tex/red.png").is_file());
+    assert!(!out.join("../etc/passwd").exists());
+    // Every corner keeps its texture coordinate: same (position, vt) pairs as the source.
+    let uv_pairs = |text: &str| -> BTreeSet<(String, String)> {
+        let v = lines_with(text, "v");
+        lines_with(text, "f")
+            .iter()
+            .flat_map(|f| f.split_whitespace().skip(1))
+            .map(|c| {
+                let mut parts = c.split('/');
+                let p = v[parts.next().unwrap().parse::<usize>().unwrap() - 1].to_string();
+                (p, parts.next().unwrap().to_string())
+            })
+            .collect()
+    };
+    let before = uv_pairs(&obj);
+    let after = uv_pairs(&text);
+    assert!(
+        after
+            .iter()
+            .filter(|(p, _)| p.starts_with("v 1.125"))
+            .count()
+            == 1
+    );
+    assert!(after
+        .iter()
+        .all(|pair| before.contains(pair) || pair.0.starts_with("v 1.125")));
+}
+
+/// PLY with colours, normals and a custom property, in all three encodings.
+fn ply_bytes(encoding: &str) -> Vec<u8> {
+    let mut header = format!(
+        "ply\nformat {encoding} 1.0\ncomment made by a test\nelement vertex 9\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float quality\nelement face 6\nproperty list uchar int vertex_indices\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    );
+    let mut positions = CUBE.to_vec();
+    positions.push([9.0, 9.0, 9.0]);
+    let vertex_normal = |p: [f64; 3]| p.map(|x| (x - 0.5) as f32);
+    let mut body = Vec::new();
+    let big = encoding == "binary_big_endian";
+    let put = |b: &mut Vec<u8>, bytes: &[u8]| {
+        if big {
+            b.extend(bytes.iter().rev());
+        } else {
+            b.extend_from_slice(bytes);
+        }
+    };
+    for (i, p) in positions.iter().enumerate() {
+        let n = vertex_normal(*p);
+        let colour = [10 * i as u8, 100, 200];
+        if encoding == "ascii" {
+            header += &format!(
+                "{} {} {} {} {} {} {} {} {} {}\n",
+                p[0],
+                p[1],
+                p[2],
+                n[0],
+                n[1],
+                n[2],
+                colour[0],
+                colour[1],
+                colour[2],
+                i as f32 / 4.0
+            );
+        } else {
+            for x in p.iter().map(|&x| x as f32).chain(n) {
+                put(&mut body, &x.to_le_bytes());
+            }
+            body.extend_from_slice(&colour);
+            put(&mut body, &(i as f32 / 4.0).to_le_bytes());
+        }
+    }
+    for (f, q) in QUADS.iter().enumerate() {
+        let colour = [f as u8, 2 * f as u8, 3 * f as u8];
+        if encoding == "ascii" {
+            header += &format!(
+                "4 {} {} {} {} {} {} {}\n",
+                q[0], q[1], q[2], q[3], colour[0], colour[1], colour[2]
+            );
+        } else {
+            body.push(4);
+            for v in q {
+                put(&mut body, &(*v as i32).to_le_bytes());
+            }
+            body.extend_from_slice(&colour);
+        }
+    }
+    let mut out = header.into_bytes();
+    out.extend(body);
+    out
+}
+
+#[test]
+fn ply_keeps_every_property_in_every_encoding() {
+    for encoding in ["ascii", "binary_little_endian", "binary_big_endian"] {
+        let (_dir, src, out) = dirs();
+        std::fs::write(src.join("cube.ply"), ply_bytes(encoding)).unwrap();
+        let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
+            .unwrap()
+            .remove(0);
+        let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
+        let copy_path = out.join("cube.ply");
+        let (_, copy) = round_trip(
+            &src.join("cube.ply"),
+            Format::Ply,
+            &[Some(plan)],
+            &copy_path,
+        );
+        assert_eq!(copy[0].positions.len(), 9);
+        let bytes = std::fs::read(&copy_path).unwrap();
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(
+            text.starts_with(&format!(
+                "ply\nformat {encoding} 1.0\ncomment made by a test\n"
+            )),
+            "{text}"
+        );
+        assert!(
+            text.contains("element vertex 9\n") && text.contains("element face 9\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("property float quality\n") && text.contains("property uchar blue\n")
+        );
+        if encoding == "ascii" {
+            let body: Vec<&str> = text.split("end_header\n").nth(1).unwrap().lines().collect();
+            // Vertex 0 (position 0 0 0): its colour, quality and its normal, negated because the
+            // bottom quad's flip leaves all faces around it ... (three faces, one flipped: the
+            // sum still agrees, so it stays).
+            assert_eq!(body[0], "0 0 0 -0.5 -0.5 -0.5 0 100 200 0", "{text}");
+            // The copy of vertex 5 (corner 0 of triangle 6) carries vertex 5's properties.
+            assert_eq!(
+                body[8], "1.125 1.25 -0.125 0.5 0.5 -0.5 20 100 200 0.5",
+                "{text}"
+            );
+            // Faces keep their colours: quad 0 reversed, the fill takes quad 2's colour.
+            assert_eq!(body[9], "4 0 1 2 3 0 0 0", "{text}");
+            assert_eq!(body.last().unwrap(), &"3 0 1 5 2 4 6");
+        }
+    }
+}
+
+#[test]
+fn off_keeps_vertex_and_face_colours() {
+    let (_dir, src, out) = dirs();
+    let mut off = String::from("COFF\n# a comment\n9 6 0\n");
+    for (i, p) in CUBE.iter().chain(&[[9.0, 9.0, 9.0]]).enumerate() {
+        off += &format!("{} {} {} {} 0.5 0.25 1\n", p[0], p[1], p[2], i as f64 / 8.0);
+    }
+    for (f, q) in QUADS.iter().enumerate() {
+        off += &format!("4 {} {} {} {} {} 0 0\n", q[0], q[1], q[2], q[3], f * 40);
+    }
+    std::fs::write(src.join("cube.off"), &off).unwrap();
+    let mesh = read(&src.join("cube.off"), Format::Off, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
+    let copy_path = out.join("cube.off");
+    round_trip(
+        &src.join("cube.off"),
+        Format::Off,
+        &[Some(plan)],
+        &copy_path,
+    );
+    let text = std::fs::read_to_string(&copy_path).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "COFF");
+    assert_eq!(lines[1], "9 9 0");
+    assert_eq!(lines[2], "0 0 0 0 0.5 0.25 1");
+    assert_eq!(lines[10], "1.125 1.25 -0.125 0.25 0.5 0.25 1", "{text}");
+    assert_eq!(lines[11], "4 0 1 2 3 0 0 0");
+    assert_eq!(*lines.last().unwrap(), "3 0 1 5 80 0 0");
+}
+
+fn stl_binary() -> Vec<u8> {
+    let mut b = b"binary header kept by meshvet".to_vec();
+    b.resize(80, b'.');
+    b.extend_from_slice(&12u32.to_le_bytes());
+    for (f, q) in QUADS.iter().enumerate() {
+        for (k, tri) in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]].iter().enumerate() {
+            b.extend_from_slice(&[0u8; 12]);
+            for &v in tri {
+                for x in CUBE[v as usize] {
+                    b.extend_from_slice(&(x as f32).to_le_bytes());
+                }
+            }
+            b.extend_from_slice(&(0x8000u16 | (2 * f + k) as u16).to_le_bytes());
+        }
+    }
+    b
+}
+
+#[test]
+fn binary_stl_keeps_header_and_attribute_bytes() {
+    let (_dir, src, out) = dirs();
+    let bytes = stl_binary();
+    std::fs::write(src.join("cube.stl"), &bytes).unwrap();
+    let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
+    let copy_path = out.join("cube.stl");
+    round_trip(
+        &src.join("cube.stl"),
+        Format::Stl,
+        &[Some(plan.clone())],
+        &copy_path,
+    );
+    let copy = std::fs::read(&copy_path).unwrap();
+    assert_eq!(copy.len(), 84 + 50 * 12);
+    assert_eq!(copy[..80], bytes[..80]);
+    for (i, t) in plan.triangles.iter().enumerate() {
+        let facet = &copy[84 + 50 * i..84 + 50 * (i + 1)];
+        let attribute = u16::from_le_bytes([facet[48], facet[49]]);
+        assert_eq!(attribute, t.source.map_or(0, |s| 0x8000 | s as u16));
+        // The facet normal follows the final winding.
+        let f = |k: usize| f32::from_le_bytes(facet[4 * k..4 * k + 4].try_into().unwrap()) as f64;
+        let p = |v: usize| [f(3 + 3 * v), f(4 + 3 * v), f(5 + 3 * v)];
+        let (a, b, c) = (p(0), p(1), p(2));
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let n = [
+            u[1] * w[2] - u[2] * w[1],
+            u[2] * w[0] - u[0] * w[2],
+            u[0] * w[1] - u[1] * w[0],
+        ];
+        assert!(n[0] * f(0) + n[1] * f(1) + n[2] * f(2) > 0.0);
+    }
+}
+
+#[test]
+fn ascii_stl_stays_ascii_with_its_name() {
+    let (_dir, src, out) = dirs();
+    let mut s = String::from("solid my part\n");
+    for q in QUADS {
+        s += "facet normal 0 0 0\nouter loop\n";
+        for v in q {
+            let p = CUBE[v as usize];
+            s += &format!("vertex {} {} {}\n", p[0], p[1], p[2]);
+        }
+        s += "endloop\nendfacet\n";
+    }
+    s += "endsolid my part\n";
+    std::fs::write(src.join("cube.stl"), &s).unwrap();
+    let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
+    let copy_path = out.join("cube.stl");
+    round_trip(
+        &src.join("cube.stl"),
+        Format::Stl,
+        &[Some(plan)],
+        &copy_path,
+    );
+    let text = std::fs::read_to_string(&copy_path).unwrap();
+    assert!(text.starts_with("solid my part\n") && text.trim_end().ends_with("endsolid my part"));
+    assert_eq!(text.matches("facet normal").count(), 12);
+}
+
+// ---- glTF -------------------------------------------------------------------------------------
+
+/// A glTF asset: mesh 0 is a box whose five sides are primitive 0 (material 0) and whose top is
+/// primitive 1 (material 1), with flat normals, tangents, UVs and 3-byte colours; mesh 1 a lone
+/// triangle; nodes, a texture, an image file and extras around them.
+fn gltf_asset() -> (Value, Vec<u8>) {
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut add = |bin: &mut Vec<u8>,
+                   data: Vec<u8>,
+                   count: usize,
+                   component: u32,
+                   type_: &str,
+                   extra: Value| {
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len()}));
+        bin.extend(data);
+        let mut a = json!({"bufferView": views.len() - 1, "componentType": component, "count": count, "type": type_});
+        for (k, v) in extra.as_object().unwrap() {
+            a[k] = v.clone();
+        }
+        accessors.push(a);
+        accessors.len() - 1
+    };
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let mut primitives = Vec::new();
+    for (range, material) in [(0..5usize, 0), (5..6, 1)] {
+        let order = [0usize, 2, 3, 5, 4, 1];
+        let (mut pos, mut nor, mut tan, mut uv, mut col, mut idx) =
+            (vec![], vec![], vec![], vec![], vec![], vec![]);
+        for (k, &f) in order[range.clone()].iter().enumerate() {
+            for (c, &v) in QUADS[f].iter().enumerate() {
+                pos.extend(CUBE[v as usize].map(|x| x as f32));
+                nor.extend(NORMALS[f].map(|x| x as f32));
+                tan.extend([1.0f32, 0.0, 0.0, 1.0]);
+                uv.extend([(c == 1 || c == 2) as u8 as f32, (c >= 2) as u8 as f32]);
+                col.extend([40 * f as u8, 255, 7]);
+                let _ = c;
+            }
+            let b = 4 * k as u16;
+            idx.extend([b, b + 1, b + 2, b, b + 2, b + 3]);
+        }
+        let n = pos.len() / 3;
+        let lo = json!([0.0, 0.0, 0.0]);
+        let hi = json!([1.0, 1.0, 1.0]);
+        let p = add(
+            &mut bin,
+            f32s(&pos),
+            n,
+            5126,
+            "VEC3",
+            json!({"min": lo, "max": hi}),
+        );
+        let nn = add(&mut bin, f32s(&nor), n, 5126, "VEC3", json!({}));
+        let t = add(&mut bin, f32s(&tan), n, 5126, "VEC4", json!({}));
+        let u = add(&mut bin, f32s(&uv), n, 5126, "VEC2", json!({}));
+        // 3-byte colours: a stride of 4 keeps each element aligned.
+        let mut padded = Vec::new();
+        for c in col.chunks(3) {
+            padded.extend_from_slice(c);
+            padded.push(0);
+        }
+        let cc = add(
+            &mut bin,
+            padded,
+            n,
+            5121,
+            "VEC3",
+            json!({"normalized": true}),
+        );
+        let i = add(
+            &mut bin,
+            idx.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            idx.len(),
+            5123,
+            "SCALAR",
+            json!({}),
+        );
+        primitives.push(json!({
+            "attributes": {"POSITION": p, "NORMAL": nn, "TANGENT": t, "TEXCOORD_0": u, "COLOR_0": cc},
+            "indices": i, "material": material, "extras": {"part": material}
+        }));
+    }
+    let tri = add(
+        &mut bin,
+        f32s(&[0.0, 0.0, 5.0, 1.0, 0.0, 5.0, 0.0, 1.0, 5.0]),
+        3,
+        5126,
+        "VEC3",
+        json!({"min": [0.0, 0.0, 5.0], "max": [1.0, 1.0, 5.0]}),
+    );
+    // The colour accessors' views have a stride.
+    for p in &primitives {
+        let c = p["attributes"]["COLOR_0"].as_u64().unwrap() as usize;
+        let v = accessors[c]["bufferView"].as_u64().unwrap() as usize;
+        views[v]["byteStride"] = json!(4);
+    }
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": "meshvet test", "extras": {"note": "keep me"}},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [
+            {"mesh": 0, "name": "box", "extras": {"tag": 1}},
+            {"mesh": 1, "translation": [2.0, 0.0, 0.0], "name": "tri"}
+        ],
+        "meshes": [
+            {"name": "box", "primitives": primitives},
+            {"name": "tri", "primitives": [{"attributes": {"POSITION": tri}}]}
+        ],
+        "materials": [
+            {"name": "sides", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+            {"name": "top", "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 1.0, 1.0]}, "extras": {"x": [1, 2]}}
+        ],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"magFilter": 9729}],
+        "images": [{"uri": "tex/wood.png"}],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    (doc, bin)
+}
+
+fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(doc).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
+/// The JSON document of a `.gltf` or `.glb` file.
+fn document(bytes: &[u8]) -> Value {
+    if bytes.starts_with(b"glTF") {
+        let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+    } else {
+        serde_json::from_slice(bytes).unwrap()
+    }
+}
+
+/// Loads a written copy with the gltf crate (validation included) and checks, for every triangle
+/// of every primitive, that its corners' normals agree with its winding and every vertex has UVs.
+fn check_with_gltf_crate(path: &Path) {
+    let bytes = std::fs::read(path).unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let folder = path.parent().unwrap();
+    let buffers: Vec<Vec<u8>> = gltf
+        .buffers()
+        .map(|b| match b.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().unwrap(),
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                use base64::Engine as _;
+                base64::engine::general_purpose::STANDARD
+                    .decode(uri.split(',').nth(1).unwrap())
+                    .unwrap()
+            }
+            gltf::buffer::Source::Uri(uri) => std::fs::read(folder.join(uri)).unwrap(),
+        })
+        .collect();
+    for mesh in gltf.meshes() {
+        for primitive in mesh.primitives() {
+            let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+            let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+            if let Some(uv) = reader.read_tex_coords(0) {
+                assert_eq!(uv.into_f32().count(), positions.len());
+            }
+            let Some(normals) = reader.read_normals() else {
+                continue;
+            };
+            let normals: Vec<[f32; 3]> = normals.collect();
+            let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+            for t in indices.chunks(3) {
+                let p = t
+                    .iter()
+                    .map(|&i| positions[i as usize].map(f64::from))
+                    .collect::<Vec<_>>();
+                let u = [p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]];
+                let w = [p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]];
+                let n = [
+                    u[1] * w[2] - u[2] * w[1],
+                    u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0],
+                ];
+                for &i in t {
+                    let s = normals[i as usize];
+                    let d = n[0] * s[0] as f64 + n[1] * s[1] as f64 + n[2] * s[2] as f64;
+                    assert!(
+                        d >= 0.0,
+                        "{}: a normal disagrees with its face",
+                        path.display()
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The hand plan on the box: the first side flipped whole, one triangle of the top dropped and
+/// added back as a fill near a side (so it borrows the top's vertices into the sides' primitive),
+/// a vertex copy; mesh 1 untouched.
+fn gltf_plans(meshes: &[Mesh]) -> Vec<Option<Plan>> {
+    let plan = hand_plan(&meshes[0], &[0, 1], 3, 10, 2);
+    vec![Some(plan), None]
+}
+
+fn check_gltf_copy(source: &Path, copy: &Path) {
+    check_with_gltf_crate(copy);
+    let before = document(&std::fs::read(source).unwrap());
+    let after = document(&std::fs::read(copy).unwrap());
+    for key in [
+        "asset",
+        "nodes",
+        "materials",
+        "textures",
+        "samplers",
+        "scenes",
+        "images",
+        "scene",
+    ] {
+        assert_eq!(before[key], after[key], "{key} changed");
+    }
+    assert_eq!(before["meshes"][1], after["meshes"][1]);
+    assert_eq!(before["meshes"][0]["name"], after["meshes"][0]["name"]);
+    for p in 0..2 {
+        let (b, a) = (
+            &before["meshes"][0]["primitives"][p],
+            &after["meshes"][0]["primitives"][p],
+        );
+        assert_eq!(b["material"], a["material"]);
+        assert_eq!(b["extras"], a["extras"]);
+        let names = |v: &Value| {
+            v["attributes"]
+                .as_object()
+                .unwrap()
+                .keys()
+                .cloned()
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(b), names(a));
+    }
+    assert!(
+        copy.parent().unwrap().join("tex/wood.png").is_file(),
+        "the image is copied beside the copy"
+    );
+}
+
+#[test]
+fn gltf_keeps_the_document_and_every_attribute() {
+    let (_dir, src, out) = dirs();
+    let (mut doc, bin) = gltf_asset();
+    std::fs::write(src.join("box.bin"), &bin).unwrap();
+    std::fs::write(src.join("tex/wood.png"), b"png").unwrap();
+    doc["buffers"][0]["uri"] = json!("box.bin");
+    std::fs::write(
+        src.join("box.gltf"),
+        serde_json::to_vec_pretty(&doc).unwrap(),
+    )
+    .unwrap();
+    let meshes = read(&src.join("box.gltf"), Format::Gltf, &cx(&src)).unwrap();
+    let plans = gltf_plans(&meshes);
+    let copy = out.join("models/box.gltf");
+    round_trip(&src.join("box.gltf"), Format::Gltf, &plans, &copy);
+    check_gltf_copy(&src.join("box.gltf"), &copy);
+    assert!(out.join("models/box.bin").is_file() && out.join("models/box.repaired.bin").is_file());
+}
+
+#[test]
+fn glb_appends_to_its_binary_chunk() {
+    let (_dir, src, out) = dirs();
+    let (doc, bin) = gltf_asset();
+    std::fs::write(src.join("tex/wood.png"), b"png").unwrap();
+    std::fs::write(src.join("box.glb"), glb(&doc, &bin)).unwrap();
+    let meshes = read(&src.join("box.glb"), Format::Glb, &cx(&src)).unwrap();
+    let plans = gltf_plans(&meshes);
+    let copy = out.join("box.glb");
+    round_trip(&src.join("box.glb"), Format::Glb, &plans, &copy);
+    check_gltf_copy(&src.join("box.glb"), &copy);
+    let after = document(&std::fs::read(&copy).unwrap());
+    assert_eq!(after["buffers"].as_array().unwrap().len(), 1);
+    // The source's bytes are still at the start of the chunk.
+    let bytes = std::fs::read(&copy).unwrap();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    assert_eq!(&bytes[28 + json_len..28 + json_len + bin.len()], &bin[..]);
+}
+
+#[test]
+fn embedded_gltf_stays_embedded() {
+    use base64::Engine as _;
+    let (_dir, src, out) = dirs();
+    let (mut doc, bin) = gltf_asset();
+    std::fs::write(src.join("tex/wood.png"), b"png").unwrap();
+    doc["buffers"][0]["uri"] = json!(format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    ));
+    std::fs::write(src.join("box.gltf"), serde_json::to_vec(&doc).unwrap()).unwrap();
+    let meshes = read(&src.join("box.gltf"), Format::Gltf, &cx(&src)).unwrap();
+    let copy = out.join("box.gltf");
+    round_trip(
+        &src.join("box.gltf"),
+        Format::Gltf,
+        &gltf_plans(&meshes),
+        &copy,
+    );
+    check_gltf_copy(&src.join("box.gltf"), &copy);
+    let after = document(&std::fs::read(&copy).unwrap());
+    assert!(after["buffers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|b| b["uri"].as_str().unwrap().starts_with("data:")));
+    assert_eq!(
+        std::fs::read_dir(&out).unwrap().count(),
+        2,
+        "only the copy and its image"
+    );
+}
+
+#[test]
+fn writing_over_the_source_is_refused() {
+    let (_dir, src, _out) = dirs();
+    std::fs::write(src.join("cube.stl"), stl_binary()).unwrap();
+    let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let e = write_repaired(
+        &src.join("cube.stl"),
+        Format::Stl,
+        &[Some(identity(&mesh))],
+        &src.join("cube.stl"),
+        &cx(&src),
+    )
+    .unwrap_err();
+    assert!(e.0.contains("overwrite"), "{e}");
+    assert_eq!(std::fs::read(src.join("cube.stl")).unwrap(), stl_binary());
+}
+
+// ---- real files ------------------------------------------------------------------------------
+
+/// Flips every seventh triangle (and keeps everything else).
+fn flip_some(mesh: &Mesh) -> Plan {
+    let mut p = identity(mesh);
+    for t in p.triangles.iter_mut().step_by(7) {
+        flip(t);
+    }
+    p.done = vec![(Kind::OrientFaces, mesh.triangles.len().div_ceil(7), None)];
+    p
+}
+
+/// Real files from `../shared/corpus` (skipped when it is absent): each readable file with
+/// triangles, up to 4 MB, is written through an identity plan and a plan that flips some faces;
+/// the copies read back with the planned triangles, glTF copies pass the gltf crate's validation
+/// whenever the source does and keep every primitive's attributes and material.
+#[test]
+fn corpus_round_trips() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    if !corpus.is_dir() {
+        eprintln!("no ../shared/corpus: skipped");
+        return;
+    }
+    let out = tempfile::tempdir().unwrap();
+    let mut done: BTreeMap<&str, usize> = BTreeMap::new();
+    for entry in walkdir::WalkDir::new(&corpus)
+        .sort_by_file_name()
+        .into_iter()
+        .flatten()
+    {
+        let path = entry.path();
+        let Some(format) = Format::of_path(path) else {
+            continue;
+        };
+        if !entry.file_type().is_file() || entry.metadata().unwrap().len() > 4 << 20 {
+            continue;
+        }
+        let c = cx(path.parent().unwrap());
+        let Ok(meshes) = read(path, format, &c) else {
+            continue;
+        };
+        if meshes.iter().all(|m| m.triangles.is_empty()) {
+            continue;
+        }
+        for (k, plan) in [identity as fn(&Mesh) -> Plan, flip_some]
+            .iter()
+            .enumerate()
+        {
+            let plans: Vec<Option<Plan>> = meshes.iter().map(|m| Some(plan(m))).collect();
+            let name = format!("{k}-{}", path.file_name().unwrap().to_string_lossy());
+            let copy = out.path().join(format.name()).join(name);
+            let written = write_repaired(path, format, &plans, &copy, &c);
+            let written = written.unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert_eq!(written[0], copy);
+            let again = read(&copy, format, &cx(copy.parent().unwrap()))
+                .unwrap_or_else(|e| panic!("{}: copy unreadable: {e}", path.display()));
+            assert_eq!(again.len(), meshes.len(), "{}", path.display());
+            for ((mesh, plan), again) in meshes.iter().zip(&plans).zip(&again) {
+                let expected = plan.as_ref().unwrap().apply(mesh);
+                assert_eq!(shape(again), shape(&expected), "{}", path.display());
+            }
+            if matches!(format, Format::Gltf | Format::Glb) {
+                let source = std::fs::read(path).unwrap();
+                let bytes = std::fs::read(&copy).unwrap();
+                if gltf::Gltf::from_slice(&source).is_ok() {
+                    gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| {
+                        panic!("{}: copy fails validation: {e}", path.display())
+                    });
+                }
+                let (before, after) = (document(&source), document(&bytes));
+                for key in [
+                    "nodes",
+                    "materials",
+                    "textures",
+                    "skins",
+                    "animations",
+                    "scenes",
+                ] {
+                    assert_eq!(before[key], after[key], "{}: {key}", path.display());
+                }
+                for (m, mesh) in before["meshes"].as_array().unwrap().iter().enumerate() {
+                    for (p, prim) in mesh["primitives"].as_array().unwrap().iter().enumerate() {
+                        let copy = &after["meshes"][m]["primitives"][p];
+                        assert_eq!(prim["material"], copy["material"], "{}", path.display());
+                        let names = |v: &Value| {
+                            v["attributes"]
+                                .as_object()
+                                .map(|o| o.keys().cloned().collect::<Vec<_>>())
+                        };
+                        assert_eq!(names(prim), names(copy), "{}", path.display());
+                    }
+                }
+            }
+            *done.entry(format.name()).or_default() += 1;
+        }
+    }
+    eprintln!("corpus round trips: {done:?}");
+    assert!(done.contains_key("gltf") || done.contains_key("glb"));
+}
