@@ -15,12 +15,15 @@
 //!    faces wound like their neighbours, their corners carrying the attributes of the border corners;
 //! 6. drop unreferenced vertices (the writer renumbers; [`Plan::used_vertices`] says which stay).
 
+use std::rc::Rc;
+
 use rustc_hash::FxHashMap;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::formats::polygon::triangulate;
 use crate::mesh::Mesh;
-use crate::topology::analyse;
+use crate::topology::analyse::is_flat;
+use crate::topology::nesting::{depths, ShellGeometry};
 use crate::weld::{weld, INVALID};
 
 /// Which repairs run.
@@ -214,7 +217,7 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
     }
     let mut shells_flipped = (0, 0);
     if options.flip_inside_out {
-        shells_flipped = work.flip_inside_out(options);
+        shells_flipped = work.flip_inside_out();
     }
     if options.fill_holes {
         let fill = work.fill_holes(options.max_hole_edges);
@@ -240,7 +243,7 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
         }
         // A component the fill closed is a new shell: it must face the right way too.
         if options.flip_inside_out && fill.holes > 0 {
-            let (shells, faces) = work.flip_inside_out(options);
+            let (shells, faces) = work.flip_inside_out();
             shells_flipped = (shells_flipped.0 + shells, shells_flipped.1 + faces);
         }
     }
@@ -289,6 +292,11 @@ struct Work<'a> {
     welded: Vec<u32>,
     /// Positions of the welded vertices.
     points: Vec<[f64; 3]>,
+    /// The Corner Table of the current triangles (those that can be in one) and their indices in
+    /// `triangles`; `None` once faces or vertices change. `wound` says whether its windings are
+    /// still the current ones (flipping faces keeps the adjacency but not the windings).
+    table: Option<Rc<(CornerTable, Vec<u32>)>>,
+    wound: bool,
 }
 
 impl<'a> Work<'a> {
@@ -314,7 +322,27 @@ impl<'a> Work<'a> {
             new_vertices: Vec::new(),
             welded: w.map,
             points: w.positions,
+            table: None,
+            wound: false,
         }
+    }
+
+    /// The current table, rebuilt when faces changed, or (with `windings`) when faces were flipped.
+    fn current(&mut self, windings: bool) -> Rc<(CornerTable, Vec<u32>)> {
+        match &self.table {
+            Some(t) if self.wound || !windings => t.clone(),
+            _ => {
+                let t = Rc::new(self.build_table());
+                self.table = Some(t.clone());
+                self.wound = true;
+                t
+            }
+        }
+    }
+
+    /// Forgets the table after faces or vertices changed.
+    fn changed(&mut self) {
+        self.table = None;
     }
 
     fn vertex_count(&self) -> usize {
@@ -339,33 +367,75 @@ impl<'a> Work<'a> {
     /// the options allow): counts `[invalid, degenerate, duplicate]`.
     fn drop_faces(&mut self, options: &Options) -> [usize; 3] {
         let mut counts = [0; 3];
-        let mut seen: FxHashMap<[u32; 3], ()> = FxHashMap::default();
         let welded = &self.welded;
         self.triangles.retain(|t| {
             let w = t
                 .corners
                 .map(|c| welded.get(c.vertex as usize).copied().unwrap_or(INVALID));
-            if w.contains(&INVALID) {
-                counts[0] += usize::from(options.drop_degenerate_faces);
-                return !options.drop_degenerate_faces;
-            }
-            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
-                counts[1] += usize::from(options.drop_degenerate_faces);
-                return !options.drop_degenerate_faces;
-            }
-            let mut key = w;
-            key.sort_unstable();
-            if seen.insert(key, ()).is_some() {
-                counts[2] += usize::from(options.drop_duplicate_faces);
-                return !options.drop_duplicate_faces;
-            }
-            true
+            let kind = if w.contains(&INVALID) {
+                0
+            } else if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+                1
+            } else {
+                return true;
+            };
+            counts[kind] += usize::from(options.drop_degenerate_faces);
+            !options.drop_degenerate_faces
         });
+        if options.drop_duplicate_faces {
+            counts[2] = self.drop_duplicates();
+        }
+        if counts.iter().any(|&n| n > 0) {
+            self.changed();
+        }
         counts
     }
 
+    /// Drops every copy of a face but the first. Copies of `{x < y < z}` all bound the edge `y-z`
+    /// with `x` opposite (as in the analysis), so the table finds them without hashing every face.
+    fn drop_duplicates(&mut self) -> usize {
+        let shared = self.current(false);
+        let (table, index) = (&shared.0, &shared.1);
+        let edge_min = |c: u32| table.v(CornerTable::n(c)).min(table.v(CornerTable::p(c)));
+        let mut copies: Vec<u32> = Vec::new();
+        for c in 0..table.corner_count() as u32 {
+            if let Some(b) = table.opposite(c) {
+                if c < b && table.v(c) == table.v(b) && table.v(c) < edge_min(c) {
+                    copies.push(CornerTable::t(b));
+                }
+            }
+        }
+        let mut apex: Vec<(u32, u32)> = Vec::new();
+        for corners in table.nonmanifold_edges() {
+            let low = edge_min(corners[0]);
+            apex.clear();
+            apex.extend(
+                corners
+                    .iter()
+                    .filter(|&&c| table.v(c) < low)
+                    .map(|&c| (table.v(c), CornerTable::t(c))),
+            );
+            apex.sort_unstable();
+            copies.extend(apex.windows(2).filter(|w| w[0].0 == w[1].0).map(|w| w[1].1));
+        }
+        if copies.is_empty() {
+            return 0;
+        }
+        let mut drop = vec![false; self.triangles.len()];
+        for &t in &copies {
+            drop[index[t as usize] as usize] = true;
+        }
+        let mut i = 0;
+        self.triangles.retain(|_| {
+            i += 1;
+            !drop[i - 1]
+        });
+        self.changed();
+        copies.len()
+    }
+
     /// The table of the triangles that can be in one, and their indices in `self.triangles`.
-    fn table(&self) -> (CornerTable, Vec<u32>) {
+    fn build_table(&self) -> (CornerTable, Vec<u32>) {
         let mut tris = Vec::with_capacity(self.triangles.len());
         let mut index = Vec::with_capacity(self.triangles.len());
         for (i, t) in self.triangles.iter().enumerate() {
@@ -387,27 +457,28 @@ impl<'a> Work<'a> {
         let nudge = self.nudge_distance(options.weld_tolerance);
         let mut last = usize::MAX;
         for _round in 0..8 {
-            let (table, index) = self.table();
+            let shared = self.current(false);
+            let (table, index) = (&shared.0, &shared.1);
             let mut opposite = table.opposites().to_vec();
             let cut = table.nonmanifold_edges().len();
             edges.get_or_insert(cut);
             if cut > 0 && cut >= last {
                 // No progress: a cut face still shares a fan with the kept pair at both ends (the
                 // surface wraps onto itself). Detach such faces whole.
-                vertices += self.detach_cut_faces(&table, &index, nudge);
+                vertices += self.detach_cut_faces(table, index, nudge);
                 last = usize::MAX;
                 continue;
             }
             last = cut;
             for corners in table.nonmanifold_edges() {
-                let pair = keep_pair(&table, corners);
+                let pair = keep_pair(table, corners);
                 for &c in corners {
                     opposite[c as usize] = c;
                 }
                 opposite[pair.0 as usize] = pair.1;
                 opposite[pair.1 as usize] = pair.0;
             }
-            let split = self.split_fans(&table, &index, &opposite, nudge);
+            let split = self.split_fans(table, index, &opposite, nudge);
             if cut == 0 && split == 0 {
                 break;
             }
@@ -556,12 +627,14 @@ impl<'a> Work<'a> {
             };
             corner.vertex = copy;
         }
+        self.changed();
     }
 
     /// Orients every orientable component consistently, flipping the smaller side (when `flip` is
     /// false only counts). Returns `(faces flipped, non-orientable components)`.
     fn orient(&mut self, flip: bool) -> (usize, usize) {
-        let (table, index) = self.table();
+        let shared = self.current(true);
+        let (table, index) = (&shared.0, &shared.1);
         let nt = table.triangle_count();
         let mut parity: Vec<Option<bool>> = vec![None; nt];
         let mut flipped = 0;
@@ -618,51 +691,99 @@ impl<'a> Work<'a> {
         let tri = &mut self.triangles[t];
         tri.corners.swap(1, 2);
         tri.flipped = !tri.flipped;
+        self.wound = false;
     }
 
     /// Flips whole shells whose volume sign is wrong for their nesting depth: `(shells, faces)`.
-    fn flip_inside_out(&mut self, options: &Options) -> (usize, usize) {
-        let current = self.current_mesh();
-        let analysis = analyse(
-            &current,
-            &crate::topology::Options {
-                weld_tolerance: options.weld_tolerance,
-            },
-        );
-        let inside_out: Vec<usize> = analysis
-            .shells
+    /// Shells are the closed components (after splitting, every component is manifold), all of which
+    /// count for nesting depth as in the analysis; only consistently wound ones have a volume sign
+    /// to act on.
+    fn flip_inside_out(&mut self) -> (usize, usize) {
+        let shared = self.current(false);
+        let (table, index) = (&shared.0, &shared.1);
+        let component = components(table);
+        let count = component.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
+        // Windings as they are now (the table's may predate flips).
+        let now: Vec<[u32; 3]> = index
             .iter()
-            .filter(|s| s.inside_out)
-            .map(|s| s.component)
+            .map(|&i| self.welded_of(&self.triangles[i as usize]))
             .collect();
-        if inside_out.is_empty() {
-            return (0, 0);
-        }
-        // Components in the analysis' numbering: by lowest face, faces linked through any edge.
-        let (table, index) = self.table();
-        let component = components(&table);
-        let mut faces = 0;
-        for (t, &comp) in component.iter().enumerate() {
-            if inside_out.binary_search(&(comp as usize)).is_ok() {
-                self.flip(index[t] as usize);
-                faces += 1;
+        let runs = |t: u32, a: u32, b: u32| {
+            let w = now[t as usize];
+            (0..3).any(|k| w[k] == a && w[(k + 1) % 3] == b)
+        };
+        let mut shell = vec![true; count];
+        let mut wound = vec![true; count];
+        for c in 0..table.corner_count() as u32 {
+            let comp = component[CornerTable::t(c) as usize] as usize;
+            match table.opposite(c) {
+                None => shell[comp] = false,
+                Some(b) => {
+                    let (x, y) = (table.v(CornerTable::n(c)), table.v(CornerTable::p(c)));
+                    if runs(CornerTable::t(c), x, y) == runs(CornerTable::t(b), x, y) {
+                        wound[comp] = false; // no volume sign to trust
+                    }
+                }
             }
         }
-        (inside_out.len(), faces)
-    }
-
-    /// The current triangles over welded vertices, as a mesh to analyse.
-    fn current_mesh(&self) -> Mesh {
-        Mesh::new(
-            self.points.clone(),
-            self.triangles.iter().map(|t| self.welded_of(t)).collect(),
-        )
+        if !shell.iter().any(|&s| s) {
+            return (0, 0);
+        }
+        let centre = self.points.first().copied().unwrap_or([0.0; 3]);
+        let mut six_volume = vec![0.0f64; count];
+        let mut bbox = vec![[[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]]; count];
+        let mut faces: Vec<Vec<u32>> = vec![Vec::new(); count];
+        for (t, w) in now.iter().enumerate() {
+            let comp = component[t] as usize;
+            if !shell[comp] {
+                continue;
+            }
+            faces[comp].push(t as u32);
+            let [a, b, c] = w.map(|v| {
+                let p = self.points[v as usize];
+                for k in 0..3 {
+                    bbox[comp][0][k] = bbox[comp][0][k].min(p[k]);
+                    bbox[comp][1][k] = bbox[comp][1][k].max(p[k]);
+                }
+                [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]]
+            });
+            six_volume[comp] += a[0] * (b[1] * c[2] - b[2] * c[1])
+                - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        }
+        let shells: Vec<usize> = (0..count).filter(|&c| shell[c]).collect();
+        let geometry: Vec<ShellGeometry> = shells
+            .iter()
+            .map(|&c| ShellGeometry {
+                bbox: bbox[c],
+                faces: &faces[c],
+            })
+            .collect();
+        let depth = depths(table, &self.points, &geometry);
+        let mut flipped = (0, 0);
+        let mut flip_faces = Vec::new();
+        for (&comp, depth) in shells.iter().zip(depth) {
+            if !wound[comp] || is_flat(six_volume[comp] / 6.0, &bbox[comp]) {
+                continue;
+            }
+            let solid = depth % 2 == 0;
+            if (solid && six_volume[comp] < 0.0) || (!solid && six_volume[comp] > 0.0) {
+                flipped.0 += 1;
+                flipped.1 += faces[comp].len();
+                flip_faces.extend(faces[comp].iter().map(|&t| index[t as usize]));
+            }
+        }
+        for t in flip_faces {
+            self.flip(t as usize);
+        }
+        flipped
     }
 
     /// Fills border loops of at most `max_edges` edges.
     fn fill_holes(&mut self, max_edges: usize) -> Fill {
         let mut fill = Fill::default();
-        let (table, index) = self.table();
+        let shared = self.current(true);
+        let (table, index) = (&shared.0, &shared.1);
         let border: Vec<u32> = (0..table.corner_count() as u32)
             .filter(|&c| table.is_border(c))
             .collect();
@@ -675,18 +796,31 @@ impl<'a> Work<'a> {
         for &c in &border {
             starting.entry(table.v(CornerTable::n(c))).or_insert(c);
         }
-        let mut edges: FxHashMap<(u32, u32), ()> = FxHashMap::default();
-        for c in 0..table.corner_count() as u32 {
-            let (a, b) = (table.v(CornerTable::n(c)), table.v(CornerTable::p(c)));
-            edges.insert((a.min(b), a.max(b)), ());
+        // Edges and faces a fill could repeat join border vertices only: collect just those.
+        let mut on_border = vec![false; table.vertex_count()];
+        for &c in &border {
+            on_border[table.v(CornerTable::n(c)) as usize] = true;
+            on_border[table.v(CornerTable::p(c)) as usize] = true;
         }
+        let mut edges: FxHashMap<(u32, u32), ()> = FxHashMap::default();
+        let mut faces: FxHashMap<[u32; 3], ()> = FxHashMap::default();
         let sorted = |t: [u32; 3]| {
             let mut t = t;
             t.sort_unstable();
             t
         };
-        let faces: FxHashMap<[u32; 3], ()> =
-            table.triangles().iter().map(|&t| (sorted(t), ())).collect();
+        for (t, w) in table.triangles().iter().enumerate() {
+            let border_corners = w.map(|v| on_border[v as usize]);
+            for k in 0..3 {
+                if border_corners[(k + 1) % 3] && border_corners[(k + 2) % 3] {
+                    let (a, b) = (w[(k + 1) % 3], w[(k + 2) % 3]);
+                    edges.insert((a.min(b), a.max(b)), ());
+                }
+            }
+            if border_corners.iter().all(|&b| b) {
+                faces.insert(sorted(table.triangles()[t]), ());
+            }
+        }
         let mut traced = vec![false; table.corner_count()];
         let mut new_triangles = Vec::new();
         for &first in &border {
@@ -769,6 +903,7 @@ impl<'a> Work<'a> {
             fill.faces += ring.len() - 2;
         }
         self.triangles.extend(new_triangles);
+        self.changed();
         fill
     }
 }

@@ -582,14 +582,23 @@ fn shells(
         } else {
             Role::Cavity
         };
+        // A flat shell (a pillow of coincident faces) has a volume of rounding noise: no sign.
+        let volume = shell.volume.filter(|&v| !is_flat(v, &shell.bbox));
         shell.inside_out = shell.oriented
-            && match (shell.role, shell.volume) {
+            && match (shell.role, volume) {
                 (Role::Solid, Some(v)) => v < 0.0,
                 (Role::Cavity, Some(v)) => v > 0.0,
                 (_, None) => false,
             };
     }
     shells
+}
+
+/// Whether a shell's volume is too small for its sign to mean anything: at most 1e-12 of its
+/// bounding box's diagonal cubed (the zero-area test's threshold, one dimension up).
+pub(crate) fn is_flat(volume: f64, bbox: &[[f64; 3]; 2]) -> bool {
+    let diagonal = dist2(&bbox[0], &bbox[1]).sqrt();
+    volume.abs() <= 1e-12 * diagonal.powi(3)
 }
 
 fn bounding_box<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> Option<[[f64; 3]; 2]> {

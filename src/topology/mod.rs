@@ -2,8 +2,8 @@
 //! an [`Analysis`] with every count the report needs plus per-component and per-shell tables; the
 //! rules decide later what those facts mean for a user.
 
-mod analyse;
-mod nesting;
+pub(crate) mod analyse;
+pub(crate) mod nesting;
 mod places;
 
 pub use analyse::analyse;
@@ -106,7 +106,8 @@ pub struct Shell {
     pub depth: usize,
     /// Solid for even depth, cavity for odd.
     pub role: Role,
-    /// Oriented, with a volume sign wrong for its role (solids need positive, cavities negative).
+    /// Oriented, with a volume sign wrong for its role (solids need positive, cavities negative). A
+    /// flat shell (|volume| <= 1e-12 x bbox diagonal cubed) has no sign and is never inside out.
     pub inside_out: bool,
     /// Bounding box of the shell's vertices.
     pub bbox: [[f64; 3]; 2],

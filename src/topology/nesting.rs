@@ -13,7 +13,7 @@ use robust::{orient2d, orient3d, Coord, Coord3D};
 use crate::corner_table::CornerTable;
 
 /// What nesting needs of a shell.
-pub(super) struct ShellGeometry<'a> {
+pub(crate) struct ShellGeometry<'a> {
     pub bbox: [[f64; 3]; 2],
     /// Triangles of the shell (indices into the table).
     pub faces: &'a [u32],
@@ -36,7 +36,7 @@ const DIRECTIONS: [[f64; 3]; 6] = [
 const ATTEMPTS: usize = 12;
 
 /// The depth of every shell.
-pub(super) fn depths(
+pub(crate) fn depths(
     table: &CornerTable,
     points: &[[f64; 3]],
     shells: &[ShellGeometry],
@@ -76,9 +76,21 @@ fn contains(
     outer: &ShellGeometry,
     inner: &ShellGeometry,
 ) -> bool {
-    let corners = inner.faces.iter().flat_map(|&t| 3 * t..3 * t + 3);
-    for c in corners.take(ATTEMPTS) {
-        let q = points[table.v(c) as usize];
+    // The lowest vertex (by x, then y, then z) first: for shells that intersect, "inside" depends on
+    // the vertex tested, and choosing it by position makes the answer independent of how faces and
+    // vertices are numbered.
+    let corners = || inner.faces.iter().flat_map(|&t| 3 * t..3 * t + 3);
+    let lowest = corners()
+        .map(|c| points[table.v(c) as usize])
+        .min_by(|a, b| {
+            a[0].total_cmp(&b[0])
+                .then(a[1].total_cmp(&b[1]))
+                .then(a[2].total_cmp(&b[2]))
+        });
+    let others = corners()
+        .take(ATTEMPTS)
+        .map(|c| points[table.v(c) as usize]);
+    for q in lowest.into_iter().chain(others) {
         if let Some(inside) = point_in_solid(table, points, outer, q) {
             return inside;
         }
