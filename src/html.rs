@@ -265,6 +265,7 @@ impl HtmlReport {
             let end = rest[at..].find("}}").expect("placeholders are closed") + at;
             match &rest[at + 2..end] {
                 "title" => page.push_str(&escape(&title(meta))),
+                "picture_style" => page.push_str(crate::picture::STYLE),
                 "header" => self.write_header(&mut page, meta, &summary),
                 "summary" => self.write_summary(&mut page, &summary),
                 "baseline" => self.write_baseline(&mut page),
