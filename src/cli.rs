@@ -55,6 +55,13 @@ pub struct Scan {
     /// No progress bar and no summary line; print only failing meshes.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+
+    /// Write a repaired copy of every file with a repairable defect under DIR, mirroring the
+    /// scanned tree, in the input's format (the `[repair]` config says which repairs run). The
+    /// report's `repaired_path`, `repairs` and `status_after` columns say what was done. Sources
+    /// are never changed; DIR is left out of the scan.
+    #[arg(long, value_name = "DIR")]
+    pub repair_dir: Option<PathBuf>,
 }
 
 impl Scan {

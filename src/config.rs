@@ -37,6 +37,21 @@ pub struct Config {
     pub limits: Option<LimitsConfig>,
     /// Worker threads; `0`: one per core.
     pub jobs: Option<usize>,
+    pub repair: Option<RepairConfig>,
+}
+
+/// The `[repair]` table: which repairs `--repair-dir` runs (SPEC 10).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RepairConfig {
+    pub drop_degenerate_faces: Option<bool>,
+    pub drop_duplicate_faces: Option<bool>,
+    pub split_nonmanifold: Option<bool>,
+    pub orient_faces: Option<bool>,
+    pub flip_inside_out: Option<bool>,
+    pub fill_holes: Option<bool>,
+    pub max_hole_edges: Option<usize>,
+    pub drop_unreferenced_vertices: Option<bool>,
 }
 
 /// The `[limits]` table.
@@ -57,6 +72,10 @@ pub struct Settings {
     pub limits: Limits,
     /// Worker threads; `0`: one per core.
     pub jobs: usize,
+    /// The repairs `--repair-dir` runs (its weld tolerance follows `weld_tolerance`).
+    pub repair: crate::repair::Options,
+    /// Where repaired copies go (`--repair-dir`; not a config key). `None`: no repair.
+    pub repair_dir: Option<PathBuf>,
 }
 
 impl Default for Settings {
@@ -68,6 +87,8 @@ impl Default for Settings {
             exclude: Vec::new(),
             limits: Limits::default(),
             jobs: 0,
+            repair: crate::repair::Options::default(),
+            repair_dir: None,
         }
     }
 }
@@ -104,7 +125,34 @@ impl Settings {
         if let Some(jobs) = layer.jobs {
             self.jobs = jobs;
         }
+        if let Some(r) = &layer.repair {
+            let o = &mut self.repair;
+            for (value, slot) in [
+                (r.drop_degenerate_faces, &mut o.drop_degenerate_faces),
+                (r.drop_duplicate_faces, &mut o.drop_duplicate_faces),
+                (r.split_nonmanifold, &mut o.split_nonmanifold),
+                (r.orient_faces, &mut o.orient_faces),
+                (r.flip_inside_out, &mut o.flip_inside_out),
+                (r.fill_holes, &mut o.fill_holes),
+                (r.drop_unreferenced_vertices, &mut o.drop_unreferenced_vertices),
+            ] {
+                if let Some(v) = value {
+                    *slot = v;
+                }
+            }
+            if let Some(n) = r.max_hole_edges {
+                o.max_hole_edges = n;
+            }
+        }
         self
+    }
+
+    /// The repair options these settings ask for (welding as the analysis does).
+    pub fn repair_options(&self) -> crate::repair::Options {
+        crate::repair::Options {
+            weld_tolerance: self.weld_tolerance,
+            ..self.repair.clone()
+        }
     }
 
     /// The analysis options these settings ask for.
@@ -352,6 +400,17 @@ mod tests {
                 max_triangles: 1,
             },
             jobs: 7,
+            repair: crate::repair::Options {
+                drop_degenerate_faces: false,
+                drop_duplicate_faces: false,
+                split_nonmanifold: false,
+                orient_faces: false,
+                flip_inside_out: false,
+                fill_holes: false,
+                max_hole_edges: 3,
+                drop_unreferenced_vertices: false,
+                weld_tolerance: 0.0,
+            },
             ..Settings::default()
         };
         for rule in Rule::ALL {

@@ -6,6 +6,7 @@ pub mod atomic;
 pub mod baseline;
 pub mod cache;
 pub mod config;
+pub mod copies;
 pub mod corner_table;
 pub mod formats;
 pub mod json;

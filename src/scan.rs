@@ -242,7 +242,20 @@ fn judge(
                 detail,
             }
         })
-        .collect();
+        .collect::<Vec<Outcome>>();
+    let mut outcomes = outcomes;
+    if let Some(dir) = &settings.repair_dir {
+        crate::copies::repair_file(
+            dir,
+            &source.display,
+            &source.path,
+            format,
+            &context,
+            &meshes,
+            &mut outcomes,
+            settings,
+        );
+    }
     Ok(outcomes)
 }
 

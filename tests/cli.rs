@@ -12,7 +12,7 @@ degenerate_faces,zero_area_faces,duplicate_faces,invalid_vertices,unreferenced_v
 border_edges,nonmanifold_edges,nonmanifold_vertices,inconsistent_edges,components,shells,holes,\
 orientable,oriented,inside_out_shells,cavities,solids,euler,genus,volume,area,bbox_min_x,\
 bbox_min_y,bbox_min_z,bbox_max_x,bbox_max_y,bbox_max_z,repaired_path,repairs,millis";
-const EXTRA_COLUMNS: &str = "invalid_faces,mirrored_instances,findings";
+const EXTRA_COLUMNS: &str = "invalid_faces,mirrored_instances,findings,status_after";
 
 /// A closed tetrahedron wound outward: passes every rule.
 const TETRA: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";

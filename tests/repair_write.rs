@@ -993,3 +993,143 @@ fn corpus_round_trips() {
     eprintln!("corpus round trips: {done:?}");
     assert!(done.contains_key("gltf") || done.contains_key("glb"));
 }
+
+// ---- the command line ---------------------------------------------------------------------
+
+/// `scan --repair-dir`: an open textured box with a flipped side gets a closed, oriented copy
+/// whose re-check passes; a clean cube gets no copy; the output folder inside the scanned tree is
+/// not scanned; and scanning the copies with `--repair-dir` again writes nothing.
+#[test]
+fn scan_writes_repaired_copies_and_rechecks_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    std::fs::create_dir_all(tree.join("props")).unwrap();
+    let mut obj = String::from("mtllib box.mtl\n");
+    for p in CUBE {
+        obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    obj += "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\ng box\nusemtl wood\n";
+    for (f, q) in QUADS.iter().enumerate() {
+        let q: Vec<u32> = if f == 2 {
+            q.iter().rev().copied().collect()
+        } else {
+            q.to_vec()
+        };
+        if f == 1 {
+            continue; // the top is open
+        }
+        obj += "f";
+        for (k, v) in q.iter().enumerate() {
+            obj += &format!(" {}/{}", v + 1, k + 1);
+        }
+        obj += "\n";
+    }
+    std::fs::write(tree.join("props/box.obj"), &obj).unwrap();
+    std::fs::write(tree.join("props/box.mtl"), "newmtl wood\nKd 1 1 1\n").unwrap();
+    std::fs::write(tree.join("clean.stl"), stl_binary()).unwrap();
+    let before = hash_tree(&tree);
+
+    let run = |args: &[&Path]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_meshvet"))
+            .arg("scan")
+            .args(args)
+            .arg("--quiet")
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.code().is_some_and(|c| c <= 1),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let csv_rows = |path: &Path| -> Vec<BTreeMap<String, String>> {
+        let mut reader = csv::Reader::from_path(path).unwrap();
+        let header = reader.headers().unwrap().clone();
+        reader
+            .records()
+            .map(|r| {
+                header
+                    .iter()
+                    .zip(r.unwrap().iter())
+                    .map(|(h, v)| (h.to_owned(), v.to_owned()))
+                    .collect()
+            })
+            .collect()
+    };
+
+    let report = dir.path().join("r.csv");
+    run(&[
+        &tree,
+        Path::new("--csv"),
+        &report,
+        Path::new("--repair-dir"),
+        &tree.join("fixed"),
+    ]);
+    for (path, hash) in &before {
+        assert_eq!(
+            hash_tree(&tree).get(path),
+            Some(hash),
+            "{} changed",
+            path.display()
+        );
+    }
+    let rows = csv_rows(&report);
+    assert_eq!(rows.len(), 2, "the output folder is not scanned: {rows:?}");
+    let stl = &rows[0];
+    assert_eq!(
+        (stl["repaired_path"].as_str(), stl["status_after"].as_str()),
+        ("", "")
+    );
+    let row = &rows[1];
+    assert_eq!(row["path"], "props/box.obj");
+    assert_eq!(
+        row["repairs"], "orient-faces:2;fill-holes:1(2 faces)",
+        "{row:?}"
+    );
+    assert_eq!(row["status_after"], "pass", "{row:?}");
+    let copy = PathBuf::from(&row["repaired_path"]);
+    let copy = if copy.is_absolute() {
+        copy
+    } else {
+        dir.path().join(copy)
+    };
+    assert_eq!(copy, tree.join("fixed/props/box.obj"));
+    let text = std::fs::read_to_string(&copy).unwrap();
+    assert_eq!(lines_with(&text, "vt").len(), 4);
+    assert_eq!(lines_with(&text, "usemtl"), ["usemtl wood"]);
+    assert!(tree.join("fixed/props/box.mtl").is_file());
+    let mesh = read(&copy, Format::Obj, &cx(copy.parent().unwrap()))
+        .unwrap()
+        .remove(0);
+    let analysis = meshvet::analyse(&mesh, &Default::default());
+    assert_eq!(
+        (
+            analysis.shells.len(),
+            analysis.border_edges,
+            analysis.inconsistent_edges
+        ),
+        (1, 0, 0)
+    );
+    assert!((analysis.shells[0].volume.unwrap() - 1.0).abs() < 1e-9);
+
+    // Repairing the repaired copy changes nothing: no copy is written.
+    let again = dir.path().join("again.csv");
+    run(&[
+        &tree.join("fixed"),
+        Path::new("--csv"),
+        &again,
+        Path::new("--repair-dir"),
+        &dir.path().join("twice"),
+    ]);
+    let rows = csv_rows(&again);
+    assert!(
+        rows.iter()
+            .all(|r| r["repaired_path"].is_empty() && r["status"] == "pass"),
+        "{rows:?}"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path().join("twice")).unwrap().count(),
+        0
+    );
+}
