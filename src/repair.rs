@@ -22,7 +22,7 @@ use rustc_hash::FxHashMap;
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::formats::polygon::triangulate;
 use crate::mesh::Mesh;
-use crate::topology::analyse::is_flat;
+use crate::topology::analyse::{is_flat, vertex_order};
 use crate::topology::nesting::{depths, ShellGeometry};
 use crate::weld::{weld, INVALID};
 
@@ -215,10 +215,6 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
             ));
         }
     }
-    let mut shells_flipped = (0, 0);
-    if options.flip_inside_out {
-        shells_flipped = work.flip_inside_out();
-    }
     if options.fill_holes {
         let fill = work.fill_holes(options.max_hole_edges);
         done.push((
@@ -241,18 +237,17 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
                 plural(fill.blocked)
             ));
         }
-        // A component the fill closed is a new shell: it must face the right way too.
-        if options.flip_inside_out && fill.holes > 0 {
-            let (shells, faces) = work.flip_inside_out();
-            shells_flipped = (shells_flipped.0 + shells, shells_flipped.1 + faces);
-        }
     }
-    let (shells, faces) = shells_flipped;
-    done.push((
-        Kind::FlipInsideOutShells,
-        shells,
-        Some(format!("{faces} faces")),
-    ));
+    // Flipping whole shells commutes with filling other components' holes, so one pass at the end
+    // sees every shell, including those the fills closed and those whose depth a fill changed.
+    if options.flip_inside_out {
+        let (shells, faces) = work.flip_inside_out();
+        done.push((
+            Kind::FlipInsideOutShells,
+            shells,
+            Some(format!("{faces} faces")),
+        ));
+    }
 
     let mut used_vertices = vec![!options.drop_unreferenced_vertices; work.vertex_count()];
     for t in &work.triangles {
@@ -435,6 +430,7 @@ impl<'a> Work<'a> {
     }
 
     /// The table of the triangles that can be in one, and their indices in `self.triangles`.
+    /// The faces go in by their lowest vertex, so walks stay in cache (as in the analysis).
     fn build_table(&self) -> (CornerTable, Vec<u32>) {
         let mut tris = Vec::with_capacity(self.triangles.len());
         let mut index = Vec::with_capacity(self.triangles.len());
@@ -445,6 +441,9 @@ impl<'a> Work<'a> {
                 index.push(i as u32);
             }
         }
+        let order = vertex_order(&tris, self.points.len());
+        let tris = order.iter().map(|&i| tris[i as usize]).collect();
+        let index = order.iter().map(|&i| index[i as usize]).collect();
         (CornerTable::from_triangles(tris, self.points.len()), index)
     }
 
@@ -699,31 +698,18 @@ impl<'a> Work<'a> {
     /// count for nesting depth as in the analysis; only consistently wound ones have a volume sign
     /// to act on.
     fn flip_inside_out(&mut self) -> (usize, usize) {
-        let shared = self.current(false);
+        let shared = self.current(true);
         let (table, index) = (&shared.0, &shared.1);
         let component = components(table);
         let count = component.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
-        // Windings as they are now (the table's may predate flips).
-        let now: Vec<[u32; 3]> = index
-            .iter()
-            .map(|&i| self.welded_of(&self.triangles[i as usize]))
-            .collect();
-        let runs = |t: u32, a: u32, b: u32| {
-            let w = now[t as usize];
-            (0..3).any(|k| w[k] == a && w[(k + 1) % 3] == b)
-        };
         let mut shell = vec![true; count];
         let mut wound = vec![true; count];
         for c in 0..table.corner_count() as u32 {
             let comp = component[CornerTable::t(c) as usize] as usize;
-            match table.opposite(c) {
-                None => shell[comp] = false,
-                Some(b) => {
-                    let (x, y) = (table.v(CornerTable::n(c)), table.v(CornerTable::p(c)));
-                    if runs(CornerTable::t(c), x, y) == runs(CornerTable::t(b), x, y) {
-                        wound[comp] = false; // no volume sign to trust
-                    }
-                }
+            if table.opposite(c).is_none() {
+                shell[comp] = false;
+            } else if !table.is_consistent(c) {
+                wound[comp] = false; // no volume sign to trust
             }
         }
         if !shell.iter().any(|&s| s) {
@@ -733,7 +719,7 @@ impl<'a> Work<'a> {
         let mut six_volume = vec![0.0f64; count];
         let mut bbox = vec![[[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]]; count];
         let mut faces: Vec<Vec<u32>> = vec![Vec::new(); count];
-        for (t, w) in now.iter().enumerate() {
+        for (t, w) in table.triangles().iter().enumerate() {
             let comp = component[t] as usize;
             if !shell[comp] {
                 continue;

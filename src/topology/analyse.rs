@@ -261,7 +261,7 @@ fn join_patches(table: &CornerTable, patches: &Patches, source: &[u32]) -> Vec<u
 /// spatially coherent order even when their faces are shuffled; walking faces in this order keeps
 /// neighbours close in memory, which made the analysis of a shuffled 1M-face torus several times
 /// faster (the walks are bound by cache misses, not by arithmetic).
-fn vertex_order(triangles: &[[u32; 3]], vertex_count: usize) -> Vec<u32> {
+pub(crate) fn vertex_order(triangles: &[[u32; 3]], vertex_count: usize) -> Vec<u32> {
     let lowest = |t: &[u32; 3]| t[0].min(t[1]).min(t[2]) as usize;
     let mut start = vec![0u32; vertex_count + 1];
     for t in triangles {
