@@ -503,10 +503,7 @@ impl HtmlReport {
         {
             // Our SVG never holds `</script`; the check keeps a future change from breaking the page.
             debug_assert!(!svg.contains("</script"));
-            let _ = write!(
-                out,
-                "<script type='text/x-svg' id='pic{i}'>{svg}</script>\n"
-            );
+            let _ = writeln!(out, "<script type='text/x-svg' id='pic{i}'>{svg}</script>");
         }
     }
 }

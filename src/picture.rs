@@ -168,7 +168,9 @@ fn draw_faces(
     triangles: &[[u32; 3]],
     inside_out: &[bool],
 ) {
-    let mut faces: Vec<(f64, [(i32, i32); 3], u16)> = Vec::with_capacity(triangles.len());
+    // (depth, screen corners, colour) of every face that covers some of the screen.
+    type Face = (f64, [(i32, i32); 3], u16);
+    let mut faces: Vec<Face> = Vec::with_capacity(triangles.len());
     for (i, t) in triangles.iter().enumerate() {
         let [a, b, c] = t.map(|v| &points[v as usize]);
         let n = normalized(cross(&sub(b, a), &sub(c, a)));
@@ -324,8 +326,8 @@ fn cluster(
                 sums.push(([0.0; 3], 0));
             }
             let sum = &mut sums[id as usize];
-            for k in 0..3 {
-                sum.0[k] += p[k];
+            for (total, x) in sum.0.iter_mut().zip(p) {
+                *total += x;
             }
             sum.1 += 1;
             *slot = id;

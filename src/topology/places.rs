@@ -225,7 +225,7 @@ mod tests {
         use crate::walk::{walk, Filter};
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
         let mut meshes = 0;
-        for source in walk(&[root.clone()], &Filter::everything()) {
+        for source in walk(std::slice::from_ref(&root), &Filter::everything()) {
             let Some(format) = source.format else {
                 continue;
             };
