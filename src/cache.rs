@@ -212,18 +212,30 @@ fn dependencies(format: Format, bytes: &[u8]) -> Vec<String> {
 /// name with spaces and several names).
 fn mtllibs(bytes: &[u8]) -> Vec<String> {
     let mut names = Vec::new();
-    for line in bytes.split(|&b| b == b'\n') {
-        let line = String::from_utf8_lossy(line);
-        let line = line.trim();
-        let Some(rest) = line.strip_prefix("mtllib") else {
-            continue;
+    let mut take = |line: &[u8]| {
+        let Some(rest) = line.trim_ascii_start().strip_prefix(b"mtllib") else {
+            return;
         };
-        if !rest.starts_with(char::is_whitespace) {
-            continue;
+        if !rest.first().is_some_and(u8::is_ascii_whitespace) {
+            return;
         }
+        let rest = String::from_utf8_lossy(rest);
         let rest = rest.trim();
         names.push(rest.to_owned());
         names.extend(rest.split_ascii_whitespace().map(str::to_owned));
+    };
+    match std::str::from_utf8(bytes) {
+        // The common case: a fast substring search, then only the lines that mention `mtllib`.
+        Ok(text) => {
+            for (at, _) in text.match_indices("mtllib") {
+                let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+                let end = text[at..].find('\n').map_or(text.len(), |i| at + i);
+                if text[start..at].trim_ascii().is_empty() {
+                    take(text[start..end].as_bytes());
+                }
+            }
+        }
+        Err(_) => bytes.split(|&b| b == b'\n').for_each(take),
     }
     names
 }
@@ -301,8 +313,8 @@ fn safe_relative(name: &str) -> Option<&Path> {
 /// One outcome as stored.
 #[derive(Serialize, Deserialize)]
 struct Stored {
-    /// The row as one CSV line (without the header).
-    row: String,
+    /// The row's CSV cells.
+    row: Vec<String>,
     /// `(rule, severity, count, message)`.
     findings: Vec<(String, String, usize, String)>,
     /// `(faces, holes, genus, volume as text, depth, role, inside_out)`: the volume as Rust's
@@ -318,8 +330,15 @@ fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
             .from_writer(Vec::new());
         writer.serialize(&o.row).map_err(io::Error::other)?;
         let line = writer.into_inner().map_err(|e| e.into_error())?;
+        let cells = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .from_reader(line.as_slice())
+            .records()
+            .next()
+            .ok_or_else(|| io::Error::other("a row wrote no CSV record"))?
+            .map_err(io::Error::other)?;
         stored.push(Stored {
-            row: String::from_utf8(line).map_err(io::Error::other)?,
+            row: cells.iter().map(str::to_owned).collect(),
             findings: o
                 .findings
                 .iter()
@@ -356,10 +375,8 @@ fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
     let stored: Vec<Stored> = serde_json::from_slice(payload).ok()?;
     let mut outcomes = Vec::with_capacity(stored.len());
     for s in stored {
-        let mut reader = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(s.row.as_bytes());
-        let row: Row = reader.deserialize().next()?.ok()?;
+        // Cells as the CSV reader would give them (no reader to build per row: that is slow).
+        let row: Row = csv::StringRecord::from(s.row).deserialize(None).ok()?;
         let findings = s
             .findings
             .into_iter()

@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 
 use meshvet::config::Config;
 use meshvet::report::Target;
+use meshvet::shard::Shard;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -26,6 +27,34 @@ pub enum Command {
     /// Exit code 0: no error-severity findings; 1: a mesh failed or a file could not be read;
     /// 2: the command or the config is wrong.
     Scan(Scan),
+
+    /// Join the CSV reports of `scan --shard K/N` runs into one, sorted by path then mesh.
+    ///
+    /// The reports must have the same columns and must not report the same path. Exit code 0:
+    /// merged; 2: a report is missing, malformed, mismatched or overlapping.
+    Merge(Merge),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct Merge {
+    /// The shard reports (CSV files written by `meshvet scan --csv`).
+    #[arg(required = true, value_name = "REPORT")]
+    pub reports: Vec<PathBuf>,
+
+    /// Write the merged CSV to FILE (`-`: standard output).
+    #[arg(long, value_name = "FILE", required = true)]
+    pub csv: PathBuf,
+}
+
+/// What `scan` prints on standard output (reports go to their own files).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Format {
+    /// A summary line, then one line per failing mesh.
+    #[default]
+    Summary,
+    /// One line per finding, `path[#mesh]: severity rule: what the rule finds (count)`, errors
+    /// first, nothing else: for pre-commit hooks and editors.
+    Lines,
 }
 
 #[derive(Debug, clap::Args)]
@@ -56,12 +85,37 @@ pub struct Scan {
     #[arg(long, short = 'q')]
     pub quiet: bool,
 
-    /// Write a repaired copy of every file with a repairable defect under DIR, mirroring the
-    /// scanned tree, in the input's format (the `[repair]` config says which repairs run). The
-    /// report's `repaired_path`, `repairs` and `status_after` columns say what was done. Sources
-    /// are never changed; DIR is left out of the scan.
+    /// What to print: `summary`, or `lines` (one line per finding, for pre-commit hooks).
+    #[arg(long, value_enum, default_value_t = Format::Summary)]
+    pub format: Format,
+
+    /// Also write JSON Lines to FILE (`-`: standard output): one object per mesh with every CSV
+    /// column, the findings and the per-shell table.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+
+    /// Also write a JUnit XML report to FILE (`-`: standard output): a test case per mesh.
+    #[arg(long, value_name = "FILE")]
+    pub junit: Option<PathBuf>,
+
+    /// Reuse the rows of files that have not changed since a scan with the same cache folder
+    /// (keyed by content, meshvet version and settings).
     #[arg(long, value_name = "DIR")]
-    pub repair_dir: Option<PathBuf>,
+    pub cache: Option<PathBuf>,
+
+    /// Compare with a previous scan's CSV and report the meshes that got worse.
+    #[arg(long, value_name = "OLD.csv")]
+    pub baseline: Option<PathBuf>,
+
+    /// Exit 1 only when a mesh got worse than in the baseline (failures it already had do not
+    /// count).
+    #[arg(long, requires = "baseline")]
+    pub fail_on_regression: bool,
+
+    /// Scan only shard K of N (1 <= K <= N): the files whose path hashes to it. Join the shards'
+    /// CSVs with `meshvet merge`.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
 }
 
 impl Scan {
@@ -72,15 +126,13 @@ impl Scan {
             ..Config::default()
         }
     }
+}
 
-    /// Where the CSV goes, if anywhere.
-    pub fn csv_target(&self) -> Option<Target> {
-        self.csv.as_ref().map(|p| {
-            if p.as_os_str() == "-" {
-                Target::Stdout
-            } else {
-                Target::File(p.clone())
-            }
-        })
+/// A report path: `-` is standard output.
+pub fn target(path: &std::path::Path) -> Target {
+    if path.as_os_str() == "-" {
+        Target::Stdout
+    } else {
+        Target::File(path.to_owned())
     }
 }

@@ -3,6 +3,7 @@
 //! Everything else lives in the library, which never prints.
 
 mod cli;
+mod outputs;
 
 use std::io::{IsTerminal, Write};
 use std::process::ExitCode;
@@ -12,13 +13,15 @@ use std::time::{Instant, SystemTime};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-use cli::{Cli, Command};
+use cli::{Cli, Command, Format};
+use meshvet::baseline::{self, Baseline};
+use meshvet::cache::Cache;
 use meshvet::config;
 use meshvet::html::{self, HtmlReport};
-use meshvet::report::{CsvReport, Target};
 use meshvet::rules::{Severity, Status};
 use meshvet::scan::{self, Outcome};
-use meshvet::walk;
+use meshvet::shard;
+use meshvet::walk::{self, Source};
 
 /// The command was wrong (bad flag, config or path): SPEC 12.
 const USAGE: u8 = 2;
@@ -33,6 +36,16 @@ fn main() -> ExitCode {
                 ExitCode::from(USAGE)
             }
         },
+        Command::Merge(args) => {
+            let target = cli::target(&args.csv);
+            match shard::merge(&args.reports, &target) {
+                Ok(_) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("meshvet merge: {e}");
+                    ExitCode::from(USAGE)
+                }
+            }
+        }
     }
 }
 
@@ -115,7 +128,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     install_quiet_panic_hook();
     let cwd =
         std::env::current_dir().map_err(|e| format!("cannot tell the current folder: {e}"))?;
-    let (mut settings, config_file) =
+    let (settings, config_file) =
         config::resolve(args.config.as_deref(), &cwd, &args.config_layer()).map_err(|e| {
             format!("bad config: {e}\nfix the config: every key and rule is listed in meshvet's configs/default.toml")
         })?;
@@ -137,22 +150,24 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     }
 
     let mut sources = walk::walk(&args.paths, &filter);
-    if let Some(dir) = &args.repair_dir {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            format!("cannot create the repair folder {}: {e}", dir.display())
-        })?;
-        // Copies written in an earlier run are not scanned as sources.
-        let real = dir.canonicalize().map_err(|e| format!("{}: {e}", dir.display()))?;
-        sources.retain(|s| !s.path.canonicalize().is_ok_and(|p| p.starts_with(&real)));
-        settings.repair_dir = Some(dir.clone());
+    if let Some(shard) = &args.shard {
+        sources.retain(|s| shard.contains(&s.display));
     }
-    let target = args.csv_target();
-    let mut report = match &target {
-        Some(t) => Some(CsvReport::create(t).map_err(|e| cannot_write(t, &e))?),
+    let mut baseline = args.baseline.as_deref().map(Baseline::read).transpose()?;
+    let cache = match &args.cache {
+        Some(dir) => Some(Cache::open(dir, &settings).map_err(|e| {
+            format!(
+                "cannot use the cache folder {}: {e} - check that it can be created and written",
+                dir.display()
+            )
+        })?),
         None => None,
     };
+    let mut reports = outputs::Reports::create(args)?;
+    let reports_on_stdout = reports.uses_stdout();
+    let lines_format = args.format == Format::Lines;
 
-    let bar = if args.quiet || !std::io::stderr().is_terminal() {
+    let bar = if args.quiet || lines_format || !std::io::stderr().is_terminal() {
         ProgressBar::hidden()
     } else {
         ProgressBar::with_draw_target(Some(sources.len() as u64), ProgressDrawTarget::stderr())
@@ -174,25 +189,51 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     let extras = scan::Extras {
         details: html.is_some(),
     };
-    let written = scan::scan_with(&sources, &settings, extras, &progress, |outcome| {
+    // Pictures for the HTML report are not cached: with --html every file is read.
+    let per_file = |source: &Source| {
+        let fresh = || scan::scan_file_with(source, &settings, extras);
+        match &cache {
+            Some(cache) if !extras.details => cache.outcomes(source, fresh),
+            _ => fresh(),
+        }
+    };
+    let mut finding_lines = Vec::new();
+    let written = scan::scan_each(&sources, settings.jobs, &per_file, &progress, |outcome| {
         summary.add(&outcome);
-        let written = match &mut report {
-            Some(r) => r.write(&outcome.row),
-            None => Ok(()),
-        };
+        let written = reports.write(&outcome);
+        if let Some(b) = &mut baseline {
+            b.compare(&outcome);
+        }
+        if lines_format {
+            finding_lines.extend(outputs::finding_lines(&outcome));
+        }
         if let Some(h) = &mut html {
             h.add(outcome);
         }
         written
     });
     bar.finish_and_clear();
-    let finished = written.and_then(|()| report.map_or(Ok(()), CsvReport::finish));
-    if let (Err(e), Some(t)) = (finished, &target) {
-        return Err(cannot_write(t, &e));
-    }
-    if let (Some(page), Some(path)) = (&html, &args.html) {
-        // Hook for `--baseline` (issue 5): pass its got-worse / got-better lists to
-        // `page.set_baseline(html::Baseline { .. })` before writing.
+    written.map_err(|e| e.to_string())?;
+    reports.finish(started.elapsed())?;
+    if let (Some(page), Some(path)) = (&mut html, &args.html) {
+        if let (Some(b), Some(name)) = (&baseline, &args.baseline) {
+            let changes = |list: &[baseline::Change]| -> Vec<html::Change> {
+                list.iter()
+                    .map(|c| html::Change {
+                        path: c.path.clone(),
+                        mesh: c.mesh.clone(),
+                        before: c.before.clone(),
+                        after: c.after.clone(),
+                        what: c.what.clone(),
+                    })
+                    .collect()
+            };
+            page.set_baseline(html::Baseline {
+                name: name.display().to_string(),
+                worse: changes(&b.worse),
+                better: changes(&b.better),
+            });
+        }
         let meta = html::Meta {
             roots: args.paths.iter().map(|p| p.display().to_string()).collect(),
             config: config_name,
@@ -209,39 +250,63 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         })?;
     }
 
-    // The summary goes to standard output unless the CSV does.
-    let mut out: Box<dyn Write> = if target == Some(Target::Stdout) {
+    // The summary goes to standard output unless a report does.
+    let mut out: Box<dyn Write> = if reports_on_stdout {
         Box::new(std::io::stderr())
     } else {
         Box::new(std::io::stdout())
     };
-    if sources.is_empty() && !args.quiet {
-        eprintln!("meshvet: no mesh files found (.obj .gltf .glb .stl .ply .off)");
-    }
     let mut lines = Vec::new();
-    if !args.quiet {
-        lines.push(summary.line(started.elapsed().as_secs_f64()));
+    if lines_format {
+        // Errors first, each severity in report order (the sort is stable).
+        finding_lines.sort_by_key(|(severity, _)| std::cmp::Reverse(*severity));
+        lines.extend(finding_lines.into_iter().map(|(_, line)| line));
+    } else {
+        if sources.is_empty() && !args.quiet {
+            eprintln!("meshvet: no mesh files found (.obj .gltf .glb .stl .ply .off)");
+        }
+        if !args.quiet {
+            lines.push(summary.line(started.elapsed().as_secs_f64()));
+            if let (Some(cache), Some(dir)) = (&cache, &args.cache) {
+                let stats = cache.stats();
+                let mut line = format!(
+                    "cache {}: {} files reused, {} read",
+                    dir.display(),
+                    stats.hits,
+                    stats.misses
+                );
+                if stats.write_errors > 0 {
+                    line = format!("{line} ({} entries could not be written)", stats.write_errors);
+                }
+                lines.push(line);
+            }
+        }
+        lines.extend(summary.failures.iter().cloned());
     }
-    lines.extend(summary.failures.iter().cloned());
+    if let (Some(b), Some(name)) = (&baseline, &args.baseline) {
+        if !lines_format || !b.worse.is_empty() {
+            lines.push(format!(
+                "since {}: {} got worse, {} got better",
+                name.display(),
+                b.worse.len(),
+                b.better.len()
+            ));
+        }
+        lines.extend(b.worse.iter().map(|c| format!("worse: {}", c.line())));
+    }
     for line in lines {
         // A closed pipe (`| head`) is not worth a panic.
         if writeln!(out, "{line}").is_err() {
             break;
         }
     }
-    Ok(if summary.fail + summary.error > 0 {
+    let failed = match (&baseline, args.fail_on_regression) {
+        (Some(b), true) => !b.worse.is_empty(),
+        _ => summary.fail + summary.error > 0,
+    };
+    Ok(if failed {
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
     })
-}
-
-fn cannot_write(target: &Target, e: &std::io::Error) -> String {
-    match target {
-        Target::Stdout => format!("cannot write the report to standard output: {e}"),
-        Target::File(p) => format!(
-            "cannot write the report {}: {e} - check that its folder exists and is writable",
-            p.display()
-        ),
-    }
 }

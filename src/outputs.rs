@@ -1,0 +1,138 @@
+//! The scan's report files (CSV, JSON Lines, JUnit), opened before the scan so a bad path fails
+//! at once, fed every outcome in report order and put in place together at the end; and the
+//! one-line-per-finding output of `--format lines` (pre-commit hooks).
+
+use std::io;
+use std::time::Duration;
+
+use meshvet::json::JsonReport;
+use meshvet::junit::JunitReport;
+use meshvet::report::{CsvReport, Target};
+use meshvet::rules::{Severity, Status};
+use meshvet::scan::Outcome;
+
+use crate::cli::{self, Scan};
+
+/// The report files a scan writes.
+pub struct Reports {
+    csv: Option<(Target, CsvReport)>,
+    json: Option<(Target, JsonReport)>,
+    junit: Option<(Target, JunitReport)>,
+}
+
+impl Reports {
+    /// Opens every report the flags ask for. At most one may go to standard output.
+    pub fn create(args: &Scan) -> Result<Reports, String> {
+        let targets = [&args.csv, &args.json, &args.junit].map(|p| p.as_deref().map(cli::target));
+        if targets
+            .iter()
+            .flatten()
+            .filter(|t| **t == Target::Stdout)
+            .count()
+            > 1
+        {
+            return Err(
+                "only one of --csv, --json and --junit can write to standard output (`-`)"
+                    .to_owned(),
+            );
+        }
+        let [csv, json, junit] = targets;
+        fn open<R>(
+            target: Option<Target>,
+            create: impl Fn(&Target) -> io::Result<R>,
+        ) -> Result<Option<(Target, R)>, String> {
+            target
+                .map(|t| {
+                    create(&t)
+                        .map(|r| (t.clone(), r))
+                        .map_err(|e| cannot_write(&t, &e))
+                })
+                .transpose()
+        }
+        Ok(Reports {
+            csv: open(csv, CsvReport::create)?,
+            json: open(json, JsonReport::create)?,
+            junit: open(junit, JunitReport::create)?,
+        })
+    }
+
+    /// Whether a report goes to standard output (then the summary goes to standard error).
+    pub fn uses_stdout(&self) -> bool {
+        let csv = self.csv.as_ref().map(|(t, _)| t);
+        let json = self.json.as_ref().map(|(t, _)| t);
+        let junit = self.junit.as_ref().map(|(t, _)| t);
+        [csv, json, junit].contains(&Some(&Target::Stdout))
+    }
+
+    /// Adds one outcome to every report. The error names the report.
+    pub fn write(&mut self, outcome: &Outcome) -> io::Result<()> {
+        fn named(t: &Target) -> impl Fn(io::Error) -> io::Error + '_ {
+            move |e| io::Error::other(cannot_write(t, &e))
+        }
+        if let Some((t, r)) = &mut self.csv {
+            r.write(&outcome.row).map_err(named(t))?;
+        }
+        if let Some((t, r)) = &mut self.json {
+            r.write(outcome).map_err(named(t))?;
+        }
+        if let Some((t, r)) = &mut self.junit {
+            r.write(outcome).map_err(named(t))?;
+        }
+        Ok(())
+    }
+
+    /// Puts every report in place; `time` is the scan's wall time (for JUnit).
+    pub fn finish(self, time: Duration) -> Result<(), String> {
+        if let Some((t, r)) = self.csv {
+            r.finish().map_err(|e| cannot_write(&t, &e))?;
+        }
+        if let Some((t, r)) = self.json {
+            r.finish().map_err(|e| cannot_write(&t, &e))?;
+        }
+        if let Some((t, r)) = self.junit {
+            r.finish(time).map_err(|e| cannot_write(&t, &e))?;
+        }
+        Ok(())
+    }
+}
+
+pub fn cannot_write(target: &Target, e: &io::Error) -> String {
+    match target {
+        Target::Stdout => format!("cannot write the report to standard output: {e}"),
+        Target::File(p) => format!(
+            "cannot write the report {}: {e} - check that its folder exists and is writable",
+            p.display()
+        ),
+    }
+}
+
+/// The `--format lines` lines of one mesh with their severity (for sorting, errors first):
+/// `path[#mesh]: severity rule: what the rule finds (count)` per finding, or
+/// `path: error: message` for a file that could not be read. Pass and empty meshes give none.
+pub fn finding_lines(outcome: &Outcome) -> Vec<(Severity, String)> {
+    let row = &outcome.row;
+    let name = if row.mesh.is_empty() {
+        row.path.clone()
+    } else {
+        format!("{}#{}", row.path, row.mesh)
+    };
+    if row.status.unwrap_or(Status::Error) == Status::Error {
+        return vec![(Severity::Error, format!("{name}: error: {}", row.message))];
+    }
+    outcome
+        .findings
+        .iter()
+        .map(|f| {
+            (
+                f.severity,
+                format!(
+                    "{name}: {} {}: {} ({})",
+                    f.severity,
+                    f.rule,
+                    f.rule.summary(),
+                    f.count
+                ),
+            )
+        })
+        .collect()
+}

@@ -1,0 +1,543 @@
+//! The workflows of issue 5 through the binary on temporary trees: the pre-commit hook as pre-commit
+//! runs it, the JSON Lines and JUnit reports as CI tools read them, the cache, the baseline and
+//! sharded scans joined by `merge`.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use tempfile::TempDir;
+
+/// A closed tetrahedron wound outward: passes every rule.
+const TETRA: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+/// The same tetrahedron wound inward: one inside-out shell (an error).
+const INSIDE_OUT: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 4 2\nf 1 3 4\nf 2 4 3\n";
+/// A single triangle: one hole (a warning).
+const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+/// Two triangles sharing an edge with a third: one non-manifold edge (error), holes (warning).
+const FIN: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n";
+
+fn tree(files: &[(&str, &str)]) -> TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in files {
+        write(dir.path(), name, text.as_bytes());
+    }
+    dir
+}
+
+fn write(root: &Path, name: &str, bytes: &[u8]) {
+    let path = root.join(name);
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(path, bytes).unwrap();
+}
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+/// Runs `program ARGS` in `cwd` as a hook runner does: arguments only, standard input closed,
+/// output captured (no terminal anywhere).
+fn run(program: &str, cwd: &Path, args: &[&str]) -> Run {
+    let out = Command::new(program)
+        .args(args)
+        .current_dir(cwd)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    Run {
+        code: out.status.code().expect("exits normally"),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn meshvet(cwd: &Path, args: &[&str]) -> Run {
+    run(env!("CARGO_BIN_EXE_meshvet"), cwd, args)
+}
+
+/// Header and rows of a CSV with `millis` blanked.
+fn without_millis(csv: &str) -> Vec<Vec<String>> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .from_reader(csv.as_bytes());
+    let mut records: Vec<Vec<String>> = reader
+        .records()
+        .map(|r| r.unwrap().iter().map(str::to_owned).collect())
+        .collect();
+    let millis = records[0].iter().position(|c| c == "millis").unwrap();
+    for r in &mut records[1..] {
+        r[millis].clear();
+    }
+    records
+}
+
+fn read(root: &Path, name: &str) -> String {
+    std::fs::read_to_string(root.join(name)).unwrap()
+}
+
+/// The hook's `entry` from `.pre-commit-hooks.yaml`, split into words.
+fn hook_entry() -> Vec<String> {
+    let hooks = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(".pre-commit-hooks.yaml"),
+    )
+    .unwrap();
+    let entry = hooks
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("entry:"))
+        .expect("the hook has an entry");
+    entry.split_whitespace().map(str::to_owned).collect()
+}
+
+#[test]
+fn the_pre_commit_hook_prints_one_line_per_finding_worst_first() {
+    let dir = tree(&[
+        ("meshvet.toml", "exclude = [\"**/wip/**\"]\n"),
+        ("models/ok.obj", TETRA),
+        ("models/open.obj", TRIANGLE),
+        ("models/fin.obj", FIN),
+        ("models/flipped.OBJ", INSIDE_OUT),
+        ("models/wip/broken.obj", INSIDE_OUT),
+    ]);
+    let entry = hook_entry();
+    assert_eq!(entry[0], "meshvet");
+    let mut args: Vec<&str> = entry[1..].iter().map(String::as_str).collect();
+    // pre-commit appends the staged files that match `files`, relative to the repository root.
+    args.extend([
+        "models/ok.obj",
+        "models/open.obj",
+        "models/fin.obj",
+        "models/flipped.OBJ",
+        "models/wip/broken.obj",
+    ]);
+    let hook = run(env!("CARGO_BIN_EXE_meshvet"), dir.path(), &args);
+    assert_eq!(hook.code, 1, "{}", hook.stderr);
+    assert_eq!(
+        hook.stdout,
+        "\
+models/fin.obj: error non-manifold-edge: an edge is shared by three or more faces (1)
+models/fin.obj: error non-manifold-vertex: the faces around a vertex do not form one fan (2)
+models/flipped.OBJ: error inside-out-shell: a closed shell faces the wrong way: a solid facing in or a cavity facing out (1)
+models/fin.obj: warning hole: a loop of border edges: the surface is open there (1)
+models/open.obj: warning hole: a loop of border edges: the surface is open there (1)
+",
+        "the excluded wip/broken.obj is skipped although named"
+    );
+    assert_eq!(hook.stderr, "");
+
+    // Only warnings: exit 0, the warnings still listed.
+    let mut ok_args: Vec<&str> = entry[1..].iter().map(String::as_str).collect();
+    ok_args.extend(["models/ok.obj", "models/open.obj", "models/wip/broken.obj"]);
+    let hook = run(env!("CARGO_BIN_EXE_meshvet"), dir.path(), &ok_args);
+    assert_eq!(hook.code, 0);
+    assert_eq!(
+        hook.stdout,
+        "models/open.obj: warning hole: a loop of border edges: the surface is open there (1)\n"
+    );
+    // Nothing wrong: no output at all.
+    let mut clean: Vec<&str> = entry[1..].iter().map(String::as_str).collect();
+    clean.push("models/ok.obj");
+    let hook = run(env!("CARGO_BIN_EXE_meshvet"), dir.path(), &clean);
+    assert_eq!(
+        (hook.code, hook.stdout.as_str(), hook.stderr.as_str()),
+        (0, "", "")
+    );
+
+    // An unreadable file is one error line. (One file named alone is reported by its name, as
+    // `scan` reports any single PATH relative to itself.)
+    write(dir.path(), "models/cut.stl", &[0xde, 0xad, 0xbe, 0xef, 0, 1, 2]);
+    let mut cut: Vec<&str> = entry[1..].iter().map(String::as_str).collect();
+    cut.push("models/cut.stl");
+    let hook = run(env!("CARGO_BIN_EXE_meshvet"), dir.path(), &cut);
+    assert_eq!(hook.code, 1);
+    assert!(
+        hook.stdout.starts_with("cut.stl: error: "),
+        "{}",
+        hook.stdout
+    );
+    assert_eq!(hook.stdout.lines().count(), 1);
+}
+
+#[test]
+fn the_hook_file_matches_the_mesh_extensions_in_any_case() {
+    let hooks = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(".pre-commit-hooks.yaml"),
+    )
+    .unwrap();
+    for key in [
+        "id: meshvet",
+        "language: rust",
+        "require_serial: true",
+        "files: (?i)\\.(obj|gltf|glb|stl|ply|off)$",
+    ] {
+        assert!(hooks.contains(key), "{key} in {hooks}");
+    }
+}
+
+fn scan_tree() -> TempDir {
+    let dir = tree(&[
+        ("a/ok.obj", TETRA),
+        ("a/open.obj", TRIANGLE),
+        ("b/fin.obj", FIN),
+        ("b/flipped.obj", INSIDE_OUT),
+        ("c/empty.obj", ""),
+    ]);
+    write(
+        dir.path(),
+        "c/garbage.stl",
+        &[0xde, 0xad, 0xbe, 0xef, 0, 1, 2],
+    );
+    dir
+}
+
+#[test]
+fn json_lines_carry_every_csv_column_findings_and_shells() {
+    let dir = scan_tree();
+    let run = meshvet(dir.path(), &["scan", "--csv", "r.csv", "--json", "r.jsonl"]);
+    assert_eq!(run.code, 1, "{}", run.stderr);
+    let csv = read(dir.path(), "r.csv");
+    let mut reader = csv::Reader::from_reader(csv.as_bytes());
+    let header: Vec<String> = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    let json = read(dir.path(), "r.jsonl");
+    let objects: Vec<serde_json::Value> = json
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert_eq!(objects.len(), rows.len());
+    for (object, row) in objects.iter().zip(&rows) {
+        let keys: Vec<&String> = object.as_object().unwrap().keys().collect();
+        assert_eq!(
+            keys,
+            header.iter().collect::<Vec<_>>(),
+            "every column, in order"
+        );
+        for (name, cell) in header.iter().zip(row.iter()) {
+            let value = &object[name.as_str()];
+            match name.as_str() {
+                "findings" => {
+                    let rules: Vec<String> = value
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|f| format!("{}:{}", f["rule"].as_str().unwrap(), f["count"]))
+                        .collect();
+                    assert_eq!(rules.join(";"), cell, "the CSV cell spelt out");
+                }
+                "shells" => {
+                    let count = value.as_array().unwrap().len();
+                    assert!(
+                        cell.is_empty() || cell == count.to_string(),
+                        "{cell} vs {value}"
+                    );
+                }
+                "millis" => assert!(value.is_number()),
+                _ if cell.is_empty() => {
+                    assert!(value.is_null() || value == "", "{name}: {value}")
+                }
+                _ => match value {
+                    serde_json::Value::String(s) => assert_eq!(s, cell, "{name}"),
+                    serde_json::Value::Bool(b) => assert_eq!(b.to_string(), cell, "{name}"),
+                    serde_json::Value::Number(n) => {
+                        let parsed: f64 = cell.parse().unwrap();
+                        assert_eq!(n.as_f64().unwrap(), parsed, "{name}")
+                    }
+                    other => panic!("{name}: {other}"),
+                },
+            }
+        }
+    }
+    let flipped = objects
+        .iter()
+        .find(|o| o["path"] == "b/flipped.obj")
+        .unwrap();
+    assert_eq!(flipped["status"], "fail");
+    assert_eq!(
+        flipped["findings"][0],
+        serde_json::json!({"rule": "inside-out-shell", "severity": "error", "count": 1,
+            "message": "1 inside-out shell"})
+    );
+    let shell = &flipped["shells"][0];
+    assert_eq!(
+        (
+            &shell["faces"],
+            &shell["holes"],
+            &shell["genus"],
+            &shell["depth"]
+        ),
+        (&4.into(), &0.into(), &0.into(), &0.into())
+    );
+    assert_eq!(
+        (&shell["role"], &shell["inside_out"]),
+        (&"solid".into(), &true.into())
+    );
+    assert!((shell["volume"].as_f64().unwrap() + 1.0 / 6.0).abs() < 1e-12);
+    let garbage = objects
+        .iter()
+        .find(|o| o["path"] == "c/garbage.stl")
+        .unwrap();
+    assert_eq!(garbage["status"], "error");
+    assert_eq!(garbage["faces"], serde_json::Value::Null);
+}
+
+#[test]
+fn junit_has_one_suite_a_case_per_mesh_and_the_right_counts() {
+    let dir = scan_tree();
+    let run = meshvet(dir.path(), &["scan", "--junit", "out/junit.xml"]);
+    assert_eq!(run.code, 2, "the folder does not exist: {}", run.stderr);
+    assert!(run.stderr.contains("out/junit.xml"), "{}", run.stderr);
+    std::fs::create_dir(dir.path().join("out")).unwrap();
+    let run = meshvet(dir.path(), &["scan", "--junit", "out/junit.xml"]);
+    assert_eq!(run.code, 1, "{}", run.stderr);
+    let xml = read(dir.path(), "out/junit.xml");
+    let doc = roxmltree::Document::parse(&xml).unwrap();
+    let suites: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("testsuite"))
+        .collect();
+    assert_eq!(suites.len(), 1);
+    let suite = suites[0];
+    let attr = |name: &str| suite.attribute(name).unwrap().parse::<usize>().unwrap();
+    let cases: Vec<_> = suite
+        .children()
+        .filter(|n| n.has_tag_name("testcase"))
+        .collect();
+    assert_eq!(cases.len(), 6);
+    assert_eq!(attr("tests"), 6);
+    assert_eq!(attr("failures"), 2, "fin and flipped");
+    assert_eq!(attr("errors"), 1, "garbage");
+    assert_eq!(attr("skipped"), 1, "empty");
+    let case = |name: &str| {
+        *cases
+            .iter()
+            .find(|c| c.attribute("name") == Some(name))
+            .unwrap()
+    };
+    let failure = case("b/fin.obj")
+        .children()
+        .find(|n| n.has_tag_name("failure"))
+        .unwrap();
+    assert_eq!(failure.attribute("type"), Some("non-manifold-edge"));
+    assert_eq!(
+        failure.text().unwrap().lines().collect::<Vec<_>>(),
+        [
+            "non-manifold-edge: 1 non-manifold edge",
+            "non-manifold-vertex: 2 non-manifold vertices"
+        ],
+        "a line per error-severity finding"
+    );
+    assert_eq!(
+        case("a/ok.obj")
+            .children()
+            .filter(|n| n.is_element())
+            .count(),
+        0
+    );
+    assert!(case("c/garbage.stl")
+        .children()
+        .any(|n| n.has_tag_name("error")));
+    let names: Vec<_> = std::fs::read_dir(dir.path().join("out")).unwrap().collect();
+    assert_eq!(names.len(), 1, "no temporary file left");
+}
+
+#[test]
+fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
+    let dir = scan_tree();
+    write(
+        dir.path(),
+        "a/textured.obj",
+        format!("mtllib t.mtl\n{TETRA}").as_bytes(),
+    );
+    let args = ["scan", "--cache", "cache", "--csv", "-", "a", "b", "c"];
+    let cold = meshvet(dir.path(), &args);
+    assert!(
+        cold.stderr.contains("0 files reused, 7 read"),
+        "{}",
+        cold.stderr
+    );
+    let warm = meshvet(dir.path(), &args);
+    // Error rows are never stored: garbage.stl is read again.
+    assert!(
+        warm.stderr.contains("6 files reused, 1 read"),
+        "{}",
+        warm.stderr
+    );
+    assert_eq!(without_millis(&warm.stdout), without_millis(&cold.stdout));
+    assert_eq!(warm.code, cold.code);
+
+    // Damage every entry: each is recomputed, the report is unchanged.
+    let mut entries = 0;
+    for folder in std::fs::read_dir(dir.path().join("cache")).unwrap() {
+        for entry in std::fs::read_dir(folder.unwrap().path()).unwrap() {
+            let path = entry.unwrap().path();
+            let bytes = std::fs::read(&path).unwrap();
+            std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
+            entries += 1;
+        }
+    }
+    assert_eq!(entries, 6);
+    let damaged = meshvet(dir.path(), &args);
+    assert!(
+        damaged.stderr.contains("0 files reused, 7 read"),
+        "{}",
+        damaged.stderr
+    );
+    assert_eq!(
+        without_millis(&damaged.stdout),
+        without_millis(&cold.stdout)
+    );
+
+    // A changed file and a new dependency are read again; the rest still comes from the cache.
+    write(dir.path(), "a/open.obj", TETRA.as_bytes());
+    write(dir.path(), "a/t.mtl", b"newmtl red\n");
+    let changed = meshvet(dir.path(), &args);
+    assert!(
+        changed.stderr.contains("4 files reused, 3 read"),
+        "{}",
+        changed.stderr
+    );
+    let fresh = meshvet(dir.path(), &["scan", "--csv", "-", "a", "b", "c"]);
+    assert_eq!(
+        without_millis(&changed.stdout),
+        without_millis(&fresh.stdout)
+    );
+}
+
+#[test]
+fn the_baseline_names_regressions_and_can_alone_decide_the_exit_code() {
+    let dir = tree(&[
+        ("m/fin.obj", FIN),
+        ("m/ok.obj", TETRA),
+        ("m/open.obj", TRIANGLE),
+    ]);
+    let old = meshvet(dir.path(), &["scan", "m", "--csv", "old.csv"]);
+    assert_eq!(old.code, 1, "fin.obj already fails");
+    let same = meshvet(
+        dir.path(),
+        &["scan", "m", "--baseline", "old.csv", "--fail-on-regression"],
+    );
+    assert_eq!(
+        same.code, 0,
+        "a failure the baseline had is no regression: {}",
+        same.stdout
+    );
+    assert!(
+        same.stdout
+            .contains("since old.csv: 0 got worse, 0 got better"),
+        "{}",
+        same.stdout
+    );
+
+    write(dir.path(), "m/open.obj", INSIDE_OUT.as_bytes());
+    write(dir.path(), "m/new.obj", INSIDE_OUT.as_bytes());
+    write(dir.path(), "m/fin.obj", TETRA.as_bytes());
+    let worse = meshvet(
+        dir.path(),
+        &["scan", "m", "--baseline", "old.csv", "--fail-on-regression"],
+    );
+    assert_eq!(worse.code, 1);
+    let tail: Vec<&str> = worse
+        .stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("since"))
+        .collect();
+    assert_eq!(
+        tail,
+        [
+            "since old.csv: 2 got worse, 1 got better",
+            "worse: new.obj: newly failing: inside-out-shell (new -> fail)",
+            "worse: open.obj: newly failing: inside-out-shell (warn -> fail)",
+        ]
+    );
+    // Without the flag the ordinary rule decides; the regressions are still reported.
+    let plain = meshvet(dir.path(), &["scan", "m", "--baseline", "old.csv", "-q"]);
+    assert_eq!(plain.code, 1);
+    assert!(plain.stdout.contains("worse: open.obj"), "{}", plain.stdout);
+
+    // A CSV with another column set is a clear usage error.
+    write(
+        dir.path(),
+        "other.csv",
+        b"path,mesh,status\nm/ok.obj,,pass\n",
+    );
+    let other = meshvet(dir.path(), &["scan", "m", "--baseline", "other.csv"]);
+    assert_eq!(other.code, 2);
+    assert!(other.stderr.contains("other columns"), "{}", other.stderr);
+    let flag_alone = meshvet(dir.path(), &["scan", "m", "--fail-on-regression"]);
+    assert_eq!(flag_alone.code, 2, "--fail-on-regression needs --baseline");
+}
+
+#[test]
+fn three_shards_merged_equal_the_unsharded_scan() {
+    let dir = tree(&[]);
+    for i in 0..40 {
+        let text = [TETRA, INSIDE_OUT, TRIANGLE, FIN][i % 4];
+        write(
+            dir.path(),
+            &format!("lib/d{}/m{i:02}.obj", i % 5),
+            text.as_bytes(),
+        );
+    }
+    write(dir.path(), "lib/d1/garbage.stl", b"\x00\x01 not an STL");
+    let whole = meshvet(dir.path(), &["scan", "lib", "--csv", "whole.csv"]);
+    let mut sizes = Vec::new();
+    for k in 1..=3 {
+        let shard = format!("{k}/3");
+        let out = format!("shard{k}.csv");
+        let run = meshvet(
+            dir.path(),
+            &["scan", "lib", "--shard", &shard, "--csv", &out],
+        );
+        assert!(run.code <= 1, "{}", run.stderr);
+        sizes.push(read(dir.path(), &out).lines().count() - 1);
+    }
+    assert_eq!(sizes.iter().sum::<usize>(), 41);
+    assert!(sizes.iter().all(|&n| n > 0), "{sizes:?}");
+    let merge = meshvet(
+        dir.path(),
+        &[
+            "merge",
+            "shard3.csv",
+            "shard1.csv",
+            "shard2.csv",
+            "--csv",
+            "all.csv",
+        ],
+    );
+    assert_eq!(merge.code, 0, "{}", merge.stderr);
+    assert_eq!(
+        without_millis(&read(dir.path(), "all.csv")),
+        without_millis(&read(dir.path(), "whole.csv"))
+    );
+    assert_eq!(whole.code, 1);
+
+    let overlap = meshvet(
+        dir.path(),
+        &["merge", "shard1.csv", "shard1.csv", "--csv", "bad.csv"],
+    );
+    assert_eq!(overlap.code, 2);
+    assert!(
+        overlap.stderr.contains("must not overlap"),
+        "{}",
+        overlap.stderr
+    );
+    assert!(!dir.path().join("bad.csv").exists());
+    write(dir.path(), "other.csv", b"path,mesh,status\nz.obj,,pass\n");
+    let mismatch = meshvet(
+        dir.path(),
+        &["merge", "shard1.csv", "other.csv", "--csv", "-"],
+    );
+    assert_eq!(mismatch.code, 2);
+    assert!(
+        mismatch.stderr.contains("different columns"),
+        "{}",
+        mismatch.stderr
+    );
+    let bad_shard = meshvet(dir.path(), &["scan", "lib", "--shard", "4/3"]);
+    assert_eq!(bad_shard.code, 2);
+}
