@@ -134,7 +134,10 @@ impl Settings {
                 (r.orient_faces, &mut o.orient_faces),
                 (r.flip_inside_out, &mut o.flip_inside_out),
                 (r.fill_holes, &mut o.fill_holes),
-                (r.drop_unreferenced_vertices, &mut o.drop_unreferenced_vertices),
+                (
+                    r.drop_unreferenced_vertices,
+                    &mut o.drop_unreferenced_vertices,
+                ),
             ] {
                 if let Some(v) = value {
                     *slot = v;

@@ -548,15 +548,12 @@ fn rewrite_mesh(
                 order.push(v as u32);
             }
         }
-        for v in mesh.positions.len()..plan.used_vertices.len() {
-            if here[v] {
-                local.insert(v as u32, order.len() as u32);
-                order.push(v as u32);
-            }
-        }
-        for v in 0..mesh.positions.len() {
-            if here[v] && !local.contains_key(&(v as u32)) {
-                local.insert(v as u32, order.len() as u32);
+        // New vertices first, then input vertices of other primitives (fills borrow them).
+        let n = mesh.positions.len();
+        let others = (n..here.len()).chain(0..n);
+        for v in others.filter(|&v| here[v]) {
+            if let std::collections::hash_map::Entry::Vacant(e) = local.entry(v as u32) {
+                e.insert(order.len() as u32);
                 order.push(v as u32);
             }
         }
@@ -799,8 +796,8 @@ fn gather(
     what: &str,
     lookup: impl Fn(&container::Model, usize) -> Option<usize>,
 ) -> Result<(Vec<u8>, ValuesInfo), WriteError> {
-    if !cache.contains_key(&accessor) {
-        cache.insert(accessor, values(data, model, accessor, what)?);
+    if let std::collections::hash_map::Entry::Vacant(e) = cache.entry(accessor) {
+        e.insert(values(data, model, accessor, what)?);
     }
     let mine = &cache[&accessor];
     let info = ValuesInfo {
@@ -825,8 +822,8 @@ fn gather(
         };
         let mut pushed = false;
         if let Some(a) = source {
-            if !cache.contains_key(&a) {
-                cache.insert(a, values(data, model, a, what)?);
+            if let std::collections::hash_map::Entry::Vacant(e) = cache.entry(a) {
+                e.insert(values(data, model, a, what)?);
             }
             let other = &cache[&a];
             if other.size == info.size
@@ -892,8 +889,8 @@ fn copy_external(
                 let to = folder.join(&rel);
                 let key = rel.to_string_lossy().replace('\\', "/");
                 if taken.get(&key).is_none_or(|p| *p == real) {
-                    if !taken.contains_key(&key) {
-                        taken.insert(key, real.clone());
+                    if let std::collections::hash_map::Entry::Vacant(e) = taken.entry(key) {
+                        e.insert(real.clone());
                         super::copy_beside(&real, &to)?;
                         written.push(to);
                     }

@@ -34,6 +34,11 @@ pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result
         .pop()
         .ok_or_else(|| WriteError::new("the PLY reader returned no mesh"))?;
     let (text, header, start) = header(&bytes)?;
+    if header.elements.contains_key("tristrips") {
+        return Err(WriteError::new(
+            "PLY triangle strips (`tristrips`) cannot be written yet: convert the file to faces",
+        ));
+    }
     let elements = parse_body(&bytes[start..], &header)?;
     let face_element = elements.iter().find(|e| e.def.name == "face");
     let index_key = face_element.and_then(|e| {
