@@ -20,6 +20,8 @@ pub struct Cli {
     pub command: Command,
 }
 
+// Parsed once per run: the size difference between the variants costs nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Scan mesh files (.obj .gltf .glb .stl .ply .off) and report their topology.
@@ -111,6 +113,13 @@ pub struct Scan {
     /// count).
     #[arg(long, requires = "baseline")]
     pub fail_on_regression: bool,
+
+    /// Write a repaired copy of every file with a repairable defect under DIR, mirroring the
+    /// scanned tree, in the input's format (the `[repair]` config says which repairs run). The
+    /// report's `repaired_path`, `repairs` and `status_after` columns say what was done. Sources
+    /// are never changed; DIR is left out of the scan.
+    #[arg(long, value_name = "DIR")]
+    pub repair_dir: Option<PathBuf>,
 
     /// Scan only shard K of N (1 <= K <= N): the files whose path hashes to it. Join the shards'
     /// CSVs with `meshvet merge`.

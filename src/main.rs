@@ -128,7 +128,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     install_quiet_panic_hook();
     let cwd =
         std::env::current_dir().map_err(|e| format!("cannot tell the current folder: {e}"))?;
-    let (settings, config_file) =
+    let (mut settings, config_file) =
         config::resolve(args.config.as_deref(), &cwd, &args.config_layer()).map_err(|e| {
             format!("bad config: {e}\nfix the config: every key and rule is listed in meshvet's configs/default.toml")
         })?;
@@ -150,6 +150,15 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     }
 
     let mut sources = walk::walk(&args.paths, &filter);
+    if let Some(dir) = &args.repair_dir {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            format!("cannot create the repair folder {}: {e}", dir.display())
+        })?;
+        // Copies written in an earlier run are not scanned as sources.
+        let real = dir.canonicalize().map_err(|e| format!("{}: {e}", dir.display()))?;
+        sources.retain(|s| !s.path.canonicalize().is_ok_and(|p| p.starts_with(&real)));
+        settings.repair_dir = Some(dir.clone());
+    }
     if let Some(shard) = &args.shard {
         sources.retain(|s| shard.contains(&s.display));
     }
