@@ -265,9 +265,6 @@ enum Reason {
     /// Not definitional: the reference is wrong for this file. Its PLY header lines end with a
     /// bare CR (old Mac style); the libraries that loaded it read no elements.
     BareCrPlyHeader,
-    /// SUSPECT (reader, not engine): meshvet skips a PLY `tristrips` element (with a note), so the
-    /// mesh has no faces; PyMeshLab and libigl decode the strips into triangles.
-    PlyTristrips,
 }
 
 impl Reason {
@@ -290,9 +287,6 @@ impl Reason {
             }
             Reason::BareCrPlyHeader => {
                 "reference wrong: PLY header with bare-CR line ends, the libraries read nothing"
-            }
-            Reason::PlyTristrips => {
-                "SUSPECT reader gap: PLY `tristrips` skipped by meshvet, decoded by the libraries"
             }
         }
     }
@@ -368,14 +362,6 @@ impl Reason {
                     Err("the header does not use bare CR line ends, or nobody reads faces".into())
                 }
             }
-            Reason::PlyTristrips => {
-                let noted = cx.mesh.notes.iter().any(|n| n.contains("tristrips"));
-                if a.faces == 0 && noted {
-                    Ok(())
-                } else {
-                    Err("meshvet now reads faces, or skips no `tristrips` element".into())
-                }
-            }
         }
     }
 }
@@ -413,11 +399,6 @@ const EXCLUDED: &[(&str, Column, Reason)] = &[
     ("draco/Box.ply", Triangles, Reason::BareCrPlyHeader),
     ("draco/Box.ply", Edges, Reason::BareCrPlyHeader),
     ("draco/Box.ply", Closed, Reason::BareCrPlyHeader),
-    // SUSPECT: the faces are a `tristrips` element meshvet skips (reader gap, reported).
-    ("common3d/igea.ply", Components, Reason::PlyTristrips),
-    ("common3d/igea.ply", Euler, Reason::PlyTristrips),
-    ("common3d/igea.ply", Genus, Reason::PlyTristrips),
-    ("common3d/igea.ply", Volume, Reason::PlyTristrips),
 ];
 
 // ---------------------------------------------------------------------------------------------

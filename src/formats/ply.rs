@@ -113,6 +113,43 @@ impl PropertyAccess for Face {
     }
 }
 
+/// Appends the triangles of one triangle strip (`-1` restarts the strip; every other triangle is
+/// wound the other way round, so all keep the strip's orientation). Windows that repeat a vertex
+/// index are the strip's stitching, not faces: they are left out and counted. An index that is
+/// neither `-1` nor a vertex is returned as the error.
+fn add_strip(
+    strip: impl Iterator<Item = i64>,
+    n_vertices: usize,
+    out: &mut Vec<[u32; 3]>,
+) -> Result<usize, i64> {
+    let mut stitches = 0;
+    let mut run: Vec<u32> = Vec::new();
+    let mut flush = |run: &mut Vec<u32>, out: &mut Vec<[u32; 3]>| {
+        for (k, w) in run.windows(3).enumerate() {
+            let t = if k % 2 == 0 {
+                [w[0], w[1], w[2]]
+            } else {
+                [w[1], w[0], w[2]]
+            };
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                stitches += 1;
+            } else {
+                out.push(t);
+            }
+        }
+        run.clear();
+    };
+    for index in strip {
+        match index {
+            -1 => flush(&mut run, out),
+            i if i >= 0 && (i as usize) < n_vertices => run.push(i as u32),
+            i => return Err(i),
+        }
+    }
+    flush(&mut run, out);
+    Ok(stitches)
+}
+
 /// Any element we do not use: read (to move past it) and dropped.
 struct Skip;
 
@@ -249,6 +286,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         line: header_lines,
     };
     let mut poly = Vec::new();
+    let mut stitches = 0;
     let vertices_read_before_faces = header
         .elements
         .get_index_of("vertex")
@@ -298,6 +336,32 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                     }
                 }
             }
+            "tristrips" if def.properties.keys().any(|k| is_index_list(k)) => {
+                for i in 0..def.count {
+                    let f: Face = body.element(def, i)?;
+                    let strip = f
+                        .signed
+                        .iter()
+                        .map(|&k| k as i64)
+                        .chain(f.unsigned.iter().map(|&k| k as i64))
+                        .chain(f.wide.iter().copied());
+                    stitches += add_strip(strip, n_vertices, &mut mesh.triangles)
+                        .map_err(|index| {
+                            ReadError::new(format!(
+                                "PLY tristrips {i}{}: vertex index {index} is out of range (the \
+                                 file has {n_vertices} vertices) - the file is broken, re-export it",
+                                body.at()
+                            ))
+                        })?;
+                    if mesh.triangles.len() as u64 > cx.limits.max_triangles {
+                        return Err(ReadError::new(format!(
+                            "the file has more than {} triangles, over the limit: raise \
+                             limits.max_triangles in the config to scan it",
+                            cx.limits.max_triangles
+                        )));
+                    }
+                }
+            }
             _ => {
                 for i in 0..def.count {
                     let _: Skip = body.element(def, i)?;
@@ -310,6 +374,11 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 }
             }
         }
+    }
+    if stitches > 0 {
+        mesh.notes.push(format!(
+            "{stitches} triangles of PLY tristrips repeat a vertex (strip stitching) and were left out"
+        ));
     }
     for (i, poly) in &faces {
         let split = polygon::triangulate(poly, &mesh.positions, &mut mesh.triangles);
@@ -589,6 +658,18 @@ mod tests {
             root: ".".into(),
             limits: Limits::default(),
         }
+    }
+
+    /// Strip 0 1 2 3 | 4 5 6 6 7 (-1 restarts): triangles 012, 213 (second window reversed), 456;
+    /// 566 and 667 repeat vertex 6 (stitching), left out.
+    #[test]
+    fn tristrips_alternate_winding_and_drop_stitches() {
+        let mut out = Vec::new();
+        let strip = [0, 1, 2, 3, -1, 4, 5, 6, 6, 7].into_iter();
+        assert_eq!(add_strip(strip, 8, &mut out), Ok(2));
+        assert_eq!(out, vec![[0, 1, 2], [2, 1, 3], [4, 5, 6]]);
+        assert_eq!(add_strip([0, 1, 9].into_iter(), 8, &mut out), Err(9));
+        assert_eq!(add_strip([0, -2].into_iter(), 8, &mut out), Err(-2));
     }
 
     const SQUARE: &str = "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\n\
