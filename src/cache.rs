@@ -10,12 +10,21 @@
 //! changes the key.
 //!
 //! **Entry.** `DIR/xx/<hash of the file's identity>` (absolute path, scanned root and report path),
-//! so a changed file overwrites its one entry instead of piling up new ones. It holds a header line,
-//! the key, a blake3 checksum of the payload and the payload: the rows as CSV lines (which read
-//! back exactly, see [`crate::report::Row`]), the findings and the shells. An entry is used only
-//! when the header, the key and the checksum all match and every part decodes; anything else
+//! so a changed file overwrites its one entry instead of piling up new ones. It holds a header
+//! line, a blake3 checksum of the rest, the key, the content hash, the file's dependencies with the
+//! stamps of the file and each dependency, and the payload: the rows as CSV cells (which read back
+//! exactly, see [`crate::report::Row`]), the findings and the shells. An entry is used only when
+//! the header and the checksum match, every part decodes and the key matches; anything else
 //! (truncated, corrupt, written by another version or for other settings) is a miss and is
 //! rewritten. Entries are written atomically, so a crash leaves the old entry or the new one.
+//!
+//! **Stamps.** Hashing every byte of an unchanged tree costs more than it must, so, like git's
+//! index, an entry records each file's stamp: size, modification and change times (ns), inode and
+//! device. When every stamp is unchanged and its change time is at least 2 s older than the entry
+//! (a file changed in the same clock tick could change again without a new stamp), the stored
+//! content hash is used without reading the file. The change time cannot be set by tools (`touch`,
+//! `tar` and `rsync -t` set only the modification time), so new bytes always mean a new stamp.
+//! Otherwise the content is hashed as above, and an unchanged hash refreshes the stamps.
 //!
 //! **Hit.** The stored outcomes with `millis` replaced by the time the lookup took (hashing and
 //! decoding); every other cell is what a fresh scan writes. Error rows are never stored: a file
@@ -49,6 +58,7 @@ pub struct Cache {
     max_file_bytes: u64,
     hits: AtomicUsize,
     misses: AtomicUsize,
+    unread: AtomicUsize,
     write_errors: AtomicUsize,
 }
 
@@ -57,6 +67,8 @@ pub struct Cache {
 pub struct Stats {
     pub hits: usize,
     pub misses: usize,
+    /// Hits answered from the file's stamps, without reading it.
+    pub unread: usize,
     /// Entries that could not be written (the scan went on).
     pub write_errors: usize,
 }
@@ -71,6 +83,7 @@ impl Cache {
             max_file_bytes: settings.limits.max_file_bytes,
             hits: AtomicUsize::new(0),
             misses: AtomicUsize::new(0),
+            unread: AtomicUsize::new(0),
             write_errors: AtomicUsize::new(0),
         })
     }
@@ -79,6 +92,7 @@ impl Cache {
         Stats {
             hits: self.hits.load(Ordering::Relaxed),
             misses: self.misses.load(Ordering::Relaxed),
+            unread: self.unread.load(Ordering::Relaxed),
             write_errors: self.write_errors.load(Ordering::Relaxed),
         }
     }
@@ -87,56 +101,112 @@ impl Cache {
     /// else from `fresh` (then stored). Never fails: cache trouble only costs time.
     pub fn outcomes(&self, source: &Source, fresh: impl FnOnce() -> Vec<Outcome>) -> Vec<Outcome> {
         let start = Instant::now();
-        let Some(key) = self.key(source) else {
+        if source.error.is_some() || source.format.is_none() {
             return fresh();
-        };
-        let entry = self.entry_path(source);
-        if let Some(mut outcomes) = read_entry(&entry, &key) {
+        }
+        let hit = |outcomes: Vec<Outcome>| {
             self.hits.fetch_add(1, Ordering::Relaxed);
             let millis = (start.elapsed().as_secs_f64() * 1e6).round() / 1e3;
-            for outcome in &mut outcomes {
-                outcome.row.millis = Some(millis);
+            outcomes
+                .into_iter()
+                .map(|mut o| {
+                    o.row.millis = Some(millis);
+                    o
+                })
+                .collect()
+        };
+        let path = self.entry_path(source);
+        let entry = read_entry(&path);
+        let folder = source.path.parent().unwrap_or(Path::new(""));
+        // Fast path: the file and its dependencies carry the stamps they had when the entry was
+        // written, long enough before it that a later change must have changed a stamp; the
+        // content hash is then the stored one (and the key must still match these settings).
+        if let Some(e) = &entry {
+            let unchanged = stamps(&source.path, folder, &e.meta.dependencies)
+                .is_some_and(|now| now == e.meta.stamps && settled(&now, e.meta.written));
+            if unchanged && self.key(source, &e.content) == e.key {
+                if let Some(outcomes) = decode(&e.payload) {
+                    self.unread.fetch_add(1, Ordering::Relaxed);
+                    return hit(outcomes);
+                }
             }
-            return outcomes;
+        }
+        // Content path: hash the file and its dependencies.
+        let Some((content, dependencies, stamps)) = self.content(source) else {
+            return fresh();
+        };
+        let key = self.key(source, &content);
+        let meta = Meta {
+            written: now_secs(),
+            dependencies,
+            stamps: stamps.unwrap_or_default(),
+        };
+        if let Some(e) = entry.filter(|e| e.key == key) {
+            if let Some(outcomes) = decode(&e.payload) {
+                // Same content under new stamps (touched, copied, or too recent last time):
+                // record them so the next run takes the fast path.
+                let _ = write_entry(&path, &key, &content, &meta, &e.payload);
+                return hit(outcomes);
+            }
         }
         self.misses.fetch_add(1, Ordering::Relaxed);
         let outcomes = fresh();
         let storable = outcomes
             .iter()
             .all(|o| o.row.status != Some(Status::Error) && o.detail.is_none());
-        if storable && write_entry(&entry, &key, &outcomes).is_err() {
-            self.write_errors.fetch_add(1, Ordering::Relaxed);
+        if storable {
+            let written = encode(&outcomes)
+                .and_then(|payload| write_entry(&path, &key, &content, &meta, &payload));
+            if written.is_err() {
+                self.write_errors.fetch_add(1, Ordering::Relaxed);
+            }
         }
         outcomes
     }
 
-    /// The content key of a file as it is now; `None` when it cannot be cached (not a mesh file,
-    /// unreadable, over the size limit: the fresh scan says why).
-    fn key(&self, source: &Source) -> Option<blake3::Hash> {
-        if source.error.is_some() {
-            return None;
-        }
+    /// blake3 of the file's bytes and its dependencies' (see the module docs), the dependencies'
+    /// names and the stamps taken before reading; `None` when the file cannot be cached
+    /// (unreadable, over the size limit: the fresh scan says why).
+    fn content(&self, source: &Source) -> Option<(blake3::Hash, Vec<String>, Option<Vec<String>>)> {
         let format = source.format?;
         let size = std::fs::metadata(&source.path).ok()?.len();
         if size > self.max_file_bytes {
             return None;
         }
-        let bytes = std::fs::read(&source.path).ok()?;
-        let mut hasher = blake3::Hasher::new();
-        hasher.update(self.settings.as_bytes());
-        field(&mut hasher, source.display.as_bytes());
-        field(&mut hasher, &bytes);
         let folder = source.path.parent().unwrap_or(Path::new(""));
-        for dependency in dependencies(format, &bytes) {
+        let before = stamps(&source.path, folder, &[]);
+        let bytes = std::fs::read(&source.path).ok()?;
+        let dependencies = dependencies(format, &bytes);
+        // Stamps of the dependencies too; the file's own was taken before reading it.
+        let stamps = before.and_then(|mut own| {
+            own.extend(
+                stamps(&source.path, folder, &dependencies)?
+                    .into_iter()
+                    .skip(1),
+            );
+            Some(own)
+        });
+        let mut hasher = blake3::Hasher::new();
+        field(&mut hasher, &bytes);
+        for dependency in &dependencies {
             field(&mut hasher, dependency.as_bytes());
-            match safe_relative(&dependency) {
+            match safe_relative(dependency) {
                 Some(relative) => {
                     hash_file(&mut hasher, &folder.join(relative), self.max_file_bytes)
                 }
                 None => field(&mut hasher, b"refused"),
             }
         }
-        Some(hasher.finalize())
+        Some((hasher.finalize(), dependencies, stamps))
+    }
+
+    /// The entry key: the settings (with format and version), the report path and the content.
+    fn key(&self, source: &Source, content: &blake3::Hash) -> blake3::Hash {
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(self.settings.as_bytes());
+        field(&mut hasher, source.display.as_bytes());
+        hasher.update(content.as_bytes());
+        hasher.finalize()
     }
 
     /// Where the entry of `source` lives.
@@ -231,7 +301,7 @@ fn mtllibs(bytes: &[u8]) -> Vec<String> {
                 let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
                 let end = text[at..].find('\n').map_or(text.len(), |i| at + i);
                 if text[start..at].trim_ascii().is_empty() {
-                    take(text[start..end].as_bytes());
+                    take(&text.as_bytes()[start..end]);
                 }
             }
         }
@@ -310,6 +380,9 @@ fn safe_relative(name: &str) -> Option<&Path> {
     plain.then_some(path)
 }
 
+/// `(faces, holes, genus, volume as text, depth, role, inside_out)`.
+type StoredShell = (usize, usize, Option<i64>, String, usize, String, bool);
+
 /// One outcome as stored.
 #[derive(Serialize, Deserialize)]
 struct Stored {
@@ -319,7 +392,7 @@ struct Stored {
     findings: Vec<(String, String, usize, String)>,
     /// `(faces, holes, genus, volume as text, depth, role, inside_out)`: the volume as Rust's
     /// shortest round-trip text, so even an infinite one comes back exactly.
-    shells: Vec<(usize, usize, Option<i64>, String, usize, String, bool)>,
+    shells: Vec<StoredShell>,
 }
 
 fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
@@ -422,39 +495,132 @@ fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
     (!outcomes.is_empty()).then_some(outcomes)
 }
 
-/// The outcomes in the entry at `path` if it is whole and made for `key`.
-fn read_entry(path: &Path, key: &blake3::Hash) -> Option<Vec<Outcome>> {
+/// What an entry records besides the key and the outcomes.
+#[derive(Serialize, Deserialize)]
+struct Meta {
+    /// When the entry was written (Unix seconds).
+    written: u64,
+    /// The dependencies the file named (relative to its folder).
+    dependencies: Vec<String>,
+    /// Stamps of the file, then of each dependency (see [`stamp`]); empty where stamps are not
+    /// available (then every run hashes the content).
+    stamps: Vec<String>,
+}
+
+/// A whole entry: checked header and checksum, parsed parts.
+struct Entry {
+    key: blake3::Hash,
+    content: blake3::Hash,
+    meta: Meta,
+    payload: Vec<u8>,
+}
+
+/// The entry at `path` if it is whole: the header, then a checksum of the rest, then key, content
+/// hash, meta and payload. Anything else (missing, truncated, corrupt, foreign) is `None`.
+fn read_entry(path: &Path) -> Option<Entry> {
     let mut bytes = Vec::new();
     std::fs::File::open(path)
         .ok()?
         .read_to_end(&mut bytes)
         .ok()?;
-    let mut parts = bytes.splitn(4, |&b| b == b'\n');
-    let (header, stored_key, sum, payload) =
-        (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
-    if header != HEADER.as_bytes() || stored_key != key.to_hex().as_bytes() {
+    let mut parts = bytes.splitn(3, |&b| b == b'\n');
+    let (header, sum, body) = (parts.next()?, parts.next()?, parts.next()?);
+    if header != HEADER.as_bytes() || sum != blake3::hash(body).to_hex().as_bytes() {
         return None;
     }
-    if sum != blake3::hash(payload).to_hex().as_bytes() {
-        return None;
-    }
-    decode(payload)
+    let mut parts = body.splitn(4, |&b| b == b'\n');
+    let hash = |hex: &[u8]| blake3::Hash::from_hex(hex).ok();
+    Some(Entry {
+        key: hash(parts.next()?)?,
+        content: hash(parts.next()?)?,
+        meta: serde_json::from_slice(parts.next()?).ok()?,
+        payload: parts.next()?.to_vec(),
+    })
 }
 
-fn write_entry(path: &Path, key: &blake3::Hash, outcomes: &[Outcome]) -> io::Result<()> {
-    let payload = encode(outcomes)?;
-    let mut bytes = Vec::with_capacity(payload.len() + 160);
+fn write_entry(
+    path: &Path,
+    key: &blake3::Hash,
+    content: &blake3::Hash,
+    meta: &Meta,
+    payload: &[u8],
+) -> io::Result<()> {
+    let mut body = Vec::with_capacity(payload.len() + 300);
+    body.extend_from_slice(key.to_hex().as_bytes());
+    body.push(b'\n');
+    body.extend_from_slice(content.to_hex().as_bytes());
+    body.push(b'\n');
+    serde_json::to_writer(&mut body, meta)?;
+    body.push(b'\n');
+    body.extend_from_slice(payload);
+    let mut bytes = Vec::with_capacity(body.len() + 100);
     bytes.extend_from_slice(HEADER.as_bytes());
     bytes.push(b'\n');
-    bytes.extend_from_slice(key.to_hex().as_bytes());
+    bytes.extend_from_slice(blake3::hash(&body).to_hex().as_bytes());
     bytes.push(b'\n');
-    bytes.extend_from_slice(blake3::hash(&payload).to_hex().as_bytes());
-    bytes.push(b'\n');
-    bytes.extend_from_slice(&payload);
+    bytes.extend_from_slice(&body);
     if let Some(folder) = path.parent() {
         std::fs::create_dir_all(folder)?;
     }
     AtomicFile::write_all(path, &bytes)
+}
+
+fn now_secs() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs())
+}
+
+/// Stamps of `file` and of each dependency (relative to `folder`): size, modification and change
+/// times to the nanosecond, inode and device, or `missing`. The change time cannot be set by any
+/// tool (`touch -d`, `tar`, `rsync -t` set only the modification time), so new content under an
+/// old modification time still changes the stamp. `None` where the platform has no such stamps.
+fn stamps(file: &Path, folder: &Path, dependencies: &[String]) -> Option<Vec<String>> {
+    let mut stamps = vec![stamp(file)?];
+    for d in dependencies {
+        stamps.push(match safe_relative(d) {
+            Some(relative) => stamp(&folder.join(relative))?,
+            None => "refused".to_owned(),
+        });
+    }
+    Some(stamps)
+}
+
+#[cfg(unix)]
+fn stamp(path: &Path) -> Option<String> {
+    use std::os::unix::fs::MetadataExt;
+    Some(match std::fs::metadata(path) {
+        Ok(m) => format!(
+            "{} {}.{} {}.{} {} {}",
+            m.len(),
+            m.mtime(),
+            m.mtime_nsec(),
+            m.ctime(),
+            m.ctime_nsec(),
+            m.ino(),
+            m.dev()
+        ),
+        Err(e) => format!("missing {:?}", e.kind()),
+    })
+}
+
+#[cfg(not(unix))]
+fn stamp(_: &Path) -> Option<String> {
+    None
+}
+
+/// Whether every stamp's change time is at least 2 s before `written`: a file changed in the same
+/// clock tick as its stamp was taken could change again without changing the stamp (git's "racy
+/// clean" problem), so such an entry is checked by content.
+fn settled(stamps: &[String], written: u64) -> bool {
+    stamps.iter().all(|s| {
+        let ctime = s.split(' ').nth(2).and_then(|t| t.split('.').next());
+        match ctime.and_then(|t| t.parse::<i64>().ok()) {
+            Some(ctime) => ctime.saturating_add(2) <= written as i64,
+            // `missing` or `refused`: nothing that could change silently.
+            None => !s.starts_with(char::is_numeric),
+        }
+    })
 }
 
 #[cfg(test)]
@@ -547,6 +713,53 @@ mod tests {
             let again = cache.outcomes(&source, || panic!("the entry was rewritten"));
             assert_eq!(without_millis(again), fresh);
         }
+    }
+
+    /// Pretends the entry of `source` was written `seconds` later than it was.
+    fn age(cache: &Cache, source: &Source, seconds: u64) {
+        let path = cache.entry_path(source);
+        let mut e = read_entry(&path).unwrap();
+        e.meta.written += seconds;
+        write_entry(&path, &e.key, &e.content, &e.meta, &e.payload).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn settled_stamps_skip_reading_and_any_change_is_still_seen() {
+        let (dir, cache, source) = setup();
+        let settings = Settings::default();
+        let fresh = without_millis(cache.outcomes(&source, || scan_file(&source, &settings)));
+        // Just written: too recent to trust the stamps, so the content is hashed.
+        cache.outcomes(&source, || panic!("unchanged"));
+        assert_eq!(cache.stats().unread, 0);
+        age(&cache, &source, 10);
+        let got = cache.outcomes(&source, || panic!("unchanged"));
+        assert_eq!(cache.stats().unread, 1, "answered from the stamps");
+        assert_eq!(without_millis(got), fresh);
+
+        // Same size, modification time put back: the change time still differs.
+        let file = dir.path().join("tree/m.obj");
+        let mtime = std::fs::metadata(&file).unwrap().modified().unwrap();
+        std::fs::write(&file, OPEN.replace("f 1 2 3", "f 1 3 2")).unwrap();
+        std::fs::File::options()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_modified(mtime)
+            .unwrap();
+        let misses = cache.stats().misses;
+        let got = cache.outcomes(&source, || scan_file(&source, &settings));
+        assert_eq!(cache.stats().misses, misses + 1);
+        assert_eq!(
+            without_millis(got),
+            without_millis(scan_file(&source, &settings))
+        );
+        // A dependency appearing changes its stamp from `missing`.
+        age(&cache, &source, 10);
+        std::fs::write(dir.path().join("tree/a.mtl"), "newmtl x\n").unwrap();
+        let misses = cache.stats().misses;
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        assert_eq!(cache.stats().misses, misses + 1);
     }
 
     #[test]

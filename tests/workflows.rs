@@ -145,7 +145,11 @@ models/open.obj: warning hole: a loop of border edges: the surface is open there
 
     // An unreadable file is one error line. (One file named alone is reported by its name, as
     // `scan` reports any single PATH relative to itself.)
-    write(dir.path(), "models/cut.stl", &[0xde, 0xad, 0xbe, 0xef, 0, 1, 2]);
+    write(
+        dir.path(),
+        "models/cut.stl",
+        &[0xde, 0xad, 0xbe, 0xef, 0, 1, 2],
+    );
     let mut cut: Vec<&str> = entry[1..].iter().map(String::as_str).collect();
     cut.push("models/cut.stl");
     let hook = run(env!("CARGO_BIN_EXE_meshvet"), dir.path(), &cut);
