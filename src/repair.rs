@@ -22,7 +22,7 @@ use rustc_hash::FxHashMap;
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::formats::polygon::triangulate;
 use crate::mesh::Mesh;
-use crate::topology::analyse::{is_flat, vertex_order};
+use crate::topology::analyse::{find, is_flat, union, vertex_order};
 use crate::topology::nesting::{depths, ShellGeometry};
 use crate::weld::{weld, INVALID};
 
@@ -927,19 +927,7 @@ struct Fill {
 fn components(table: &CornerTable) -> Vec<u32> {
     let nt = table.triangle_count();
     let mut parent: Vec<u32> = (0..nt as u32).collect();
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            parent[x as usize] = parent[parent[x as usize] as usize];
-            x = parent[x as usize];
-        }
-        x
-    }
-    let mut join = |a: u32, b: u32| {
-        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
-        if ra != rb {
-            parent[ra.max(rb) as usize] = ra.min(rb);
-        }
-    };
+    let mut join = |a: u32, b: u32| union(&mut parent, a, b);
     for c in 0..table.corner_count() as u32 {
         if let Some(b) = table.opposite(c) {
             join(CornerTable::t(c), CornerTable::t(b));

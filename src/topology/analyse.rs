@@ -279,7 +279,8 @@ pub(crate) fn vertex_order(triangles: &[[u32; 3]], vertex_count: usize) -> Vec<u
     order
 }
 
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
+/// Union-find over `u32` ids (path halving): the root of `x`'s set.
+pub(crate) fn find(parent: &mut [u32], mut x: u32) -> u32 {
     while parent[x as usize] != x {
         let up = parent[parent[x as usize] as usize];
         parent[x as usize] = up;
@@ -289,7 +290,7 @@ fn find(parent: &mut [u32], mut x: u32) -> u32 {
 }
 
 /// Joins two sets, keeping the smaller root (so roots stay the lowest member).
-fn union(parent: &mut [u32], a: u32, b: u32) {
+pub(crate) fn union(parent: &mut [u32], a: u32, b: u32) {
     let (ra, rb) = (find(parent, a), find(parent, b));
     if ra != rb {
         parent[ra.max(rb) as usize] = ra.min(rb);

@@ -13,6 +13,7 @@
 //!   lowest input face, exactly as [`Analysis::components`]; a face is inside-out when its component's
 //!   shell is.
 
+use super::analyse::{find, union};
 use super::{Analysis, Options};
 use crate::corner_table::CornerTable;
 use crate::mesh::Mesh;
@@ -136,23 +137,6 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
         border_edges,
         nonmanifold_edges,
         nonmanifold_vertices,
-    }
-}
-
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        let up = parent[parent[x as usize] as usize];
-        parent[x as usize] = up;
-        x = up;
-    }
-    x
-}
-
-/// Joins two sets, keeping the lower root.
-fn union(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        parent[ra.max(rb) as usize] = ra.min(rb);
     }
 }
 
