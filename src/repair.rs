@@ -255,7 +255,28 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
             used_vertices[c.vertex as usize] = true;
         }
     }
-    let unused = used_vertices.iter().filter(|&&u| !u).count();
+    // Counted by position: an input vertex whose welded vertex is still used (an STL facet corner
+    // replaced by a split copy, a glTF seam twin) was not an unreferenced vertex of the mesh.
+    let mut position_used = vec![false; work.points.len()];
+    for t in &work.triangles {
+        for c in &t.corners {
+            if let Some(&w) = work
+                .welded
+                .get(c.vertex as usize)
+                .filter(|&&w| w != INVALID)
+            {
+                position_used[w as usize] = true;
+            }
+        }
+    }
+    let unused = (0..used_vertices.len())
+        .filter(|&v| !used_vertices[v])
+        .filter(|&v| {
+            work.welded
+                .get(v)
+                .is_none_or(|&w| w == INVALID || !position_used[w as usize])
+        })
+        .count();
     done.push((Kind::DropUnreferencedVertices, unused, None));
 
     // SPEC order, repairs that did nothing left out.
