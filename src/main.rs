@@ -151,11 +151,12 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
 
     let mut sources = walk::walk(&args.paths, &filter);
     if let Some(dir) = &args.repair_dir {
-        std::fs::create_dir_all(dir).map_err(|e| {
-            format!("cannot create the repair folder {}: {e}", dir.display())
-        })?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create the repair folder {}: {e}", dir.display()))?;
         // Copies written in an earlier run are not scanned as sources.
-        let real = dir.canonicalize().map_err(|e| format!("{}: {e}", dir.display()))?;
+        let real = dir
+            .canonicalize()
+            .map_err(|e| format!("{}: {e}", dir.display()))?;
         sources.retain(|s| !s.path.canonicalize().is_ok_and(|p| p.starts_with(&real)));
         settings.repair_dir = Some(dir.clone());
     }
@@ -198,11 +199,13 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     let extras = scan::Extras {
         details: html.is_some(),
     };
-    // Pictures for the HTML report are not cached: with --html every file is read.
+    // Pictures for the HTML report are not cached, and a cached row would skip writing the
+    // repaired copy: with --html or --repair-dir every file is read.
+    let use_cache = !extras.details && settings.repair_dir.is_none();
     let per_file = |source: &Source| {
         let fresh = || scan::scan_file_with(source, &settings, extras);
         match &cache {
-            Some(cache) if !extras.details => cache.outcomes(source, fresh),
+            Some(cache) if use_cache => cache.outcomes(source, fresh),
             _ => fresh(),
         }
     };
@@ -285,7 +288,10 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
                     stats.misses
                 );
                 if stats.write_errors > 0 {
-                    line = format!("{line} ({} entries could not be written)", stats.write_errors);
+                    line = format!(
+                        "{line} ({} entries could not be written)",
+                        stats.write_errors
+                    );
                 }
                 lines.push(line);
             }

@@ -545,3 +545,31 @@ fn three_shards_merged_equal_the_unsharded_scan() {
     let bad_shard = meshvet(dir.path(), &["scan", "lib", "--shard", "4/3"]);
     assert_eq!(bad_shard.code, 2);
 }
+
+/// A cached row would skip writing the repaired copy, so with `--repair-dir` the cache is not
+/// consulted: a copy deleted after the first run is written again by the second.
+#[test]
+fn repair_runs_do_not_answer_from_the_cache() {
+    let dir = tree(&[("in/fin.obj", FIN)]);
+    let args = [
+        "scan",
+        "in",
+        "--cache",
+        "cache",
+        "--repair-dir",
+        "out",
+        "--csv",
+        "r.csv",
+    ];
+    let first = meshvet(dir.path(), &args);
+    let copy = dir.path().join("out/fin.obj");
+    assert!(copy.is_file(), "{}", first.stderr);
+    std::fs::remove_file(&copy).unwrap();
+    let second = meshvet(dir.path(), &args);
+    assert!(
+        copy.is_file(),
+        "the copy was not written again: {}",
+        second.stderr
+    );
+    assert_eq!(second.code, first.code);
+}
