@@ -2,6 +2,7 @@
 //! repaired defects are gone with numbers derived by hand, and repairs the result again: a second
 //! repair must change nothing.
 
+#[allow(dead_code)]
 mod shapes;
 
 use meshvet::repair::{plan, Kind, Options, Plan};

@@ -12,8 +12,8 @@ pub(crate) mod obj;
 pub(crate) mod off;
 pub(crate) mod ply;
 pub(crate) mod polygon;
-pub mod write;
 mod stl;
+pub mod write;
 
 /// The file formats meshvet reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
