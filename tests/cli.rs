@@ -485,3 +485,145 @@ fn a_named_file_with_another_extension_is_an_error_row_not_silence() {
     assert_eq!(rows[0][column("status")], "error");
     assert!(rows[0][column("message")].contains("not a mesh file"));
 }
+
+/// One scan holding a good file in every format next to more hostile ones: each hostile file gets
+/// its own row saying why, the good ones keep their hand-counted numbers (a tetrahedron: 4 faces, 6
+/// edges, 1 shell), and a glTF buffer outside the scanned tree is never read.
+#[test]
+fn every_format_reads_and_hostile_files_each_get_a_row() {
+    const TRI_TETRA: [[f32; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    const FACES: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+    let outside = tempfile::tempdir().unwrap();
+    let tree = Tree::new(&[("ok/tetra.obj", TETRA)]);
+    // OFF, PLY (ASCII), STL (ASCII and binary), glTF (data URI) and GLB of the same tetrahedron.
+    let mut off = String::from("OFF\n4 4 0\n");
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+         element face 4\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for p in TRI_TETRA {
+        off += &format!("{} {} {}\n", p[0], p[1], p[2]);
+        ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    let mut ascii = String::from("solid t\n");
+    let mut binary = vec![0u8; 80];
+    binary.extend(4u32.to_le_bytes());
+    for f in FACES {
+        off += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+        ply += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+        ascii += "facet normal 0 0 0\nouter loop\n";
+        binary.extend([0u8; 12]);
+        for i in f {
+            let p = TRI_TETRA[i as usize];
+            ascii += &format!("vertex {} {} {}\n", p[0], p[1], p[2]);
+            binary.extend(p.iter().flat_map(|x| x.to_le_bytes()));
+        }
+        ascii += "endloop\nendfacet\n";
+        binary.extend([0u8; 2]);
+    }
+    ascii += "endsolid t\n";
+    tree.write("ok/tetra.off", off.as_bytes());
+    tree.write("ok/tetra.ply", ply.as_bytes());
+    tree.write("ok/tetra_ascii.stl", ascii.as_bytes());
+    tree.write("ok/tetra_binary.stl", &binary);
+    let mut bin: Vec<u8> = TRI_TETRA
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    bin.extend(
+        FACES
+            .iter()
+            .flatten()
+            .flat_map(|i| (*i as u16).to_le_bytes()),
+    );
+    let gltf = |uri: &str, extra: &str| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},{extra}"meshes":[{{"name":"tetra","primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+"buffers":[{{"uri":"{uri}","byteLength":72}}],
+"bufferViews":[{{"buffer":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":24}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3"}},{{"bufferView":1,"componentType":5123,"count":12,"type":"SCALAR"}}]}}"#
+        )
+    };
+    use base64::Engine as _;
+    let data_uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    );
+    tree.write("ok/tetra.gltf", gltf(&data_uri, "").as_bytes());
+    // Hostile ones.
+    let mut truncated = binary.clone();
+    truncated.truncate(84 + 50 + 20);
+    tree.write("bad/truncated.stl", &truncated);
+    tree.write(
+        "bad/png.stl",
+        b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR\0\0\0\x01\0\0\0\x01\x08\x02\0\0\0",
+    );
+    std::fs::write(outside.path().join("secret.bin"), &bin).unwrap();
+    let climb = format!("{}/secret.bin", relative_up(tree.path(), outside.path()));
+    tree.write("bad/climbs_out.gltf", gltf(&climb, "").as_bytes());
+    let draco = r#""extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"],"#;
+    tree.write("bad/draco.gltf", gltf(&data_uri, draco).as_bytes());
+    tree.write("bad/nan.obj", format!("v nan 0 0\n{TETRA}").as_bytes());
+
+    let run = meshvet(tree.path(), &["scan", "--csv", "-"]);
+    assert_eq!(run.code, 1);
+    let rows = rows(&run.stdout);
+    let row = |path: &str| {
+        rows.iter()
+            .find(|r| r[0] == path)
+            .unwrap_or_else(|| panic!("no row for {path}: {rows:?}"))
+            .clone()
+    };
+    for path in [
+        "ok/tetra.obj",
+        "ok/tetra.off",
+        "ok/tetra.ply",
+        "ok/tetra_ascii.stl",
+        "ok/tetra_binary.stl",
+        "ok/tetra.gltf",
+    ] {
+        let r = row(path);
+        assert_eq!(r[column("status")], "pass", "{path}: {r:?}");
+        assert_eq!(
+            [
+                &r[column("faces")],
+                &r[column("edges")],
+                &r[column("shells")]
+            ],
+            ["4", "6", "1"],
+            "{path}"
+        );
+    }
+    let error = |path: &str, words: &str| {
+        let r = row(path);
+        assert_eq!(r[column("status")], "error", "{path}: {r:?}");
+        assert!(
+            r[column("message")].contains(words),
+            "{path}: {}",
+            r[column("message")]
+        );
+    };
+    error("bad/truncated.stl", "truncated");
+    error("bad/png.stl", "not an STL file");
+    error("bad/climbs_out.gltf", "secret.bin");
+    error("bad/draco.gltf", "KHR_draco_mesh_compression");
+    // NaN coordinates are a finding, not an unreadable file.
+    let nan = row("bad/nan.obj");
+    assert_eq!(nan[column("status")], "fail");
+    assert_eq!(nan[column("invalid_vertices")], "1");
+    assert_eq!(nan[column("faces")], "4");
+}
+
+/// `../../..` from `from` up to the filesystem root, then down to `to` (both absolute).
+fn relative_up(from: &Path, to: &Path) -> String {
+    let ups = from.components().count() - 1;
+    let mut s = "../".repeat(ups);
+    s.push_str(to.strip_prefix("/").unwrap().to_str().unwrap());
+    s
+}
