@@ -106,6 +106,7 @@ pub fn repair_file(
         outcome.row.repaired_path = repaired_path.clone();
         outcome.row.repairs = plan.summary();
         outcome.row.status_after = status.to_string();
+        outcome.row.findings_after = crate::report::findings_cell(&findings);
     }
 }
 

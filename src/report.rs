@@ -20,7 +20,7 @@ use crate::rules::{Finding, Status};
 use crate::topology::{Analysis, Role};
 
 /// The column names in order (the header the writer emits).
-pub const COLUMNS: [&str; 43] = [
+pub const COLUMNS: [&str; 44] = [
     "path",
     "mesh",
     "format",
@@ -64,6 +64,7 @@ pub const COLUMNS: [&str; 43] = [
     "mirrored_instances",
     "findings",
     "status_after",
+    "findings_after",
 ];
 
 /// One line of the CSV report. Field order is column order (checked against [`COLUMNS`] by a test).
@@ -125,6 +126,8 @@ pub struct Row {
     pub findings: String,
     /// The status of the repaired copy when scanned again (empty: no copy written).
     pub status_after: String,
+    /// The repaired copy's findings, `rule:count;...` like `findings` (empty: none, or no copy).
+    pub findings_after: String,
 }
 
 mod float_cell {
@@ -282,6 +285,7 @@ impl Row {
             mirrored_instances: Some(mirrored_instances),
             findings: findings_cell(findings),
             status_after: String::new(),
+            findings_after: String::new(),
         }
     }
 }
@@ -448,11 +452,11 @@ mod tests {
         assert_eq!(lines[0], COLUMNS.join(","));
         assert_eq!(
             lines[1],
-            "a/b.obj,,obj,warn,2 holes; missing b.mtl,4,0,4,0,0,0,0,0,0,0,0,0,0,1,0,2,true,true,0,0,0,0,,,2.5,0,-0.5,0,1,0.0000001,3,,,1.5,0,0,hole:2,"
+            "a/b.obj,,obj,warn,2 holes; missing b.mtl,4,0,4,0,0,0,0,0,0,0,0,0,0,1,0,2,true,true,0,0,0,0,,,2.5,0,-0.5,0,1,0.0000001,3,,,1.5,0,0,hole:2,,"
         );
         assert_eq!(
             lines[2],
-            format!("c.stl,,stl,error,truncated{}0.25,,,,", ",".repeat(34))
+            format!("c.stl,,stl,error,truncated{}0.25,,,,,", ",".repeat(34))
         );
     }
 

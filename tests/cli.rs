@@ -12,7 +12,7 @@ degenerate_faces,zero_area_faces,duplicate_faces,invalid_vertices,unreferenced_v
 border_edges,nonmanifold_edges,nonmanifold_vertices,inconsistent_edges,components,shells,holes,\
 orientable,oriented,inside_out_shells,cavities,solids,euler,genus,volume,area,bbox_min_x,\
 bbox_min_y,bbox_min_z,bbox_max_x,bbox_max_y,bbox_max_z,repaired_path,repairs,millis";
-const EXTRA_COLUMNS: &str = "invalid_faces,mirrored_instances,findings,status_after";
+const EXTRA_COLUMNS: &str = "invalid_faces,mirrored_instances,findings,status_after,findings_after";
 
 /// A closed tetrahedron wound outward: passes every rule.
 const TETRA: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
@@ -626,4 +626,29 @@ fn relative_up(from: &Path, to: &Path) -> String {
     let mut s = "../".repeat(ups);
     s.push_str(to.strip_prefix("/").unwrap().to_str().unwrap());
     s
+}
+
+/// The bowtie fixture (two triangles touching at a vertex): the repair splits the vertex, but each
+/// triangle's hole could only be filled by repeating the face, so both holes stay: the row shows
+/// the findings before and after and says what was not repairable.
+#[test]
+fn a_partial_repair_reports_what_is_left() {
+    let tree = Tree::new(&[]);
+    let fixture =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets/rules/non-manifold-vertex.obj");
+    tree.write("bowtie.obj", &std::fs::read(fixture).unwrap());
+    let run = meshvet(
+        tree.path(),
+        &["scan", ".", "--repair-dir", "fixed", "--csv", "-"],
+    );
+    let rows = rows(&run.stdout);
+    let row = rows.iter().find(|r| r[0] == "bowtie.obj").expect("a row");
+    assert_eq!(row[column("findings")], "non-manifold-vertex:1;hole:2");
+    assert_eq!(row[column("repairs")], "split-non-manifold-vertices:1");
+    assert_eq!(row[column("status_after")], "warn");
+    assert_eq!(row[column("findings_after")], "hole:2");
+    assert!(
+        row[column("message")].contains("not repairable: 2 holes left open"),
+        "{row:?}"
+    );
 }

@@ -1091,6 +1091,9 @@ fn scan_writes_repaired_copies_and_rechecks_them() {
         "{row:?}"
     );
     assert_eq!(row["status_after"], "pass", "{row:?}");
+    // Before: the hole and the flipped faces; after: nothing left to find.
+    assert!(row["findings"].contains("hole:1"), "{row:?}");
+    assert_eq!(row["findings_after"], "", "{row:?}");
     let copy = PathBuf::from(&row["repaired_path"]);
     let copy = if copy.is_absolute() {
         copy
