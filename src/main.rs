@@ -96,12 +96,16 @@ impl Summary {
             line = format!("{line}: error: {}", row.message);
         } else {
             const SHOWN: usize = 3;
-            let worst: Vec<String> = outcome
+            let mut worst: Vec<String> = outcome
                 .findings
                 .iter()
                 .filter(|f| f.severity == Severity::Error)
                 .map(|f| format!("error {}: {}", f.rule, f.message))
                 .collect();
+            if worst.is_empty() {
+                // A failure always has an error finding; should one ever not, still say something.
+                worst.push(format!("{status:?}").to_lowercase());
+            }
             line = format!("{line}: {}", worst[..worst.len().min(SHOWN)].join("; "));
             if worst.len() > SHOWN {
                 line = format!("{line} (+{} more)", worst.len() - SHOWN);
@@ -157,6 +161,18 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         let real = dir
             .canonicalize()
             .map_err(|e| format!("{}: {e}", dir.display()))?;
+        if let Some(inside) = args
+            .paths
+            .iter()
+            .find(|p| p.canonicalize().is_ok_and(|p| p.starts_with(&real)))
+        {
+            return Err(format!(
+                "the repair folder {} holds the scanned path {}: copies would be scanned as \
+                 sources - choose a repair folder outside it",
+                dir.display(),
+                inside.display()
+            ));
+        }
         sources.retain(|s| !s.path.canonicalize().is_ok_and(|p| p.starts_with(&real)));
         settings.repair_dir = Some(dir.clone());
     }
@@ -164,14 +180,17 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         sources.retain(|s| shard.contains(&s.display));
     }
     let mut baseline = args.baseline.as_deref().map(Baseline::read).transpose()?;
+    // Pictures for the HTML report are not cached, and a cached row would skip writing the
+    // repaired copy: with --html or --repair-dir every file is read and the cache is left alone.
+    let cache_unused = args.cache.is_some() && (args.html.is_some() || args.repair_dir.is_some());
     let cache = match &args.cache {
-        Some(dir) => Some(Cache::open(dir, &settings).map_err(|e| {
+        Some(dir) if !cache_unused => Some(Cache::open(dir, &settings).map_err(|e| {
             format!(
                 "cannot use the cache folder {}: {e} - check that it can be created and written",
                 dir.display()
             )
         })?),
-        None => None,
+        _ => None,
     };
     let mut reports = outputs::Reports::create(args)?;
     let reports_on_stdout = reports.uses_stdout();
@@ -199,14 +218,11 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     let extras = scan::Extras {
         details: html.is_some(),
     };
-    // Pictures for the HTML report are not cached, and a cached row would skip writing the
-    // repaired copy: with --html or --repair-dir every file is read.
-    let use_cache = !extras.details && settings.repair_dir.is_none();
     let per_file = |source: &Source| {
         let fresh = || scan::scan_file_with(source, &settings, extras);
         match &cache {
-            Some(cache) if use_cache => cache.outcomes(source, fresh),
-            _ => fresh(),
+            Some(cache) => cache.outcomes(source, fresh),
+            None => fresh(),
         }
     };
     let mut finding_lines = Vec::new();
@@ -294,6 +310,12 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
                     );
                 }
                 lines.push(line);
+            }
+            if let (true, Some(dir)) = (cache_unused, &args.cache) {
+                lines.push(format!(
+                    "cache {}: not used: --html and --repair-dir read every file",
+                    dir.display()
+                ));
             }
         }
         lines.extend(summary.failures.iter().cloned());

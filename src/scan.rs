@@ -113,7 +113,19 @@ where
             files
                 .par_iter()
                 .map(|source| {
-                    let outcomes = per_file(source);
+                    // `scan_file` catches its own panics; this backstop covers whatever else a
+                    // caller's `per_file` does (a cache lookup), so one file never ends the scan.
+                    let outcomes = caught(|| per_file(source)).unwrap_or_else(|panic| {
+                        vec![Outcome {
+                            row: Row::error(
+                                &source.display,
+                                source.format,
+                                &format!("internal error: {panic} - please report this file"),
+                                0.0,
+                            ),
+                            ..Outcome::default()
+                        }]
+                    });
                     progress(outcomes.len());
                     outcomes
                 })

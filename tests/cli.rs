@@ -652,3 +652,38 @@ fn a_partial_repair_reports_what_is_left() {
         "{row:?}"
     );
 }
+
+/// A repair folder inside the scanned tree holds last night's copies: they are not scanned as
+/// sources. A repair folder that holds the scanned folder would hide every source: refused.
+#[test]
+fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
+    let tree = Tree::new(&[
+        ("in/inside_out.obj", INSIDE_OUT),
+        ("in/fixed/inside_out.obj", TETRA),
+        ("in/fixed/stale.obj", TRIANGLE),
+    ]);
+    let run = meshvet(
+        tree.path(),
+        &["scan", "in", "--repair-dir", "in/fixed", "--csv", "-"],
+    );
+    let paths: Vec<String> = rows(&run.stdout)
+        .into_iter()
+        .map(|r| r[0].clone())
+        .collect();
+    assert_eq!(paths, ["inside_out.obj"], "{}", run.stderr);
+    let row = &rows(&run.stdout)[0];
+    assert_eq!(
+        row[column("repairs")],
+        "flip-inside-out-shells:1(4 faces)",
+        "one shell of the tetrahedron's four faces"
+    );
+    assert_eq!(row[column("status_after")], "pass", "{row:?}");
+
+    let refused = meshvet(tree.path(), &["scan", "in", "--repair-dir", "."]);
+    assert_eq!(refused.code, 2, "{}", refused.stderr);
+    assert!(
+        refused.stderr.contains("choose a repair folder outside it"),
+        "{}",
+        refused.stderr
+    );
+}

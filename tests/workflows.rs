@@ -572,4 +572,13 @@ fn repair_runs_do_not_answer_from_the_cache() {
         second.stderr
     );
     assert_eq!(second.code, first.code);
+    assert!(
+        second.stdout.contains("cache cache: not used"),
+        "the summary says the cache was left alone: {}",
+        second.stdout
+    );
+    assert!(
+        !dir.path().join("cache").exists(),
+        "an unused cache folder is not even created"
+    );
 }
