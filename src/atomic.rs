@@ -1,5 +1,5 @@
-//! Files that appear whole or not at all: every report (CSV, JSON Lines, JUnit, merged CSV) and every
-//! cache entry is written to a temporary file beside its target and renamed over it when complete.
+//! Files that appear whole or not at all: every report (CSV, JSON Lines, JUnit, HTML, merged CSV)
+//! and every cache entry is written to a temporary file beside its target and renamed over it when complete.
 //! A crash, a full disk or an error half-way leaves the previous file untouched and no temporary
 //! file behind (dropping an uncommitted [`AtomicFile`] removes it).
 
@@ -27,17 +27,27 @@ impl AtomicFile {
         })
     }
 
-    /// Writes `bytes` to `path` atomically in one call.
+    /// Writes `bytes` to `path` atomically in one call, without waiting for the disk: for entries
+    /// that are verified when read (the cache), where a power cut may cost an entry, never a
+    /// wrong one, and thousands of `fsync`s would cost more than they save.
     pub fn write_all(path: &Path, bytes: &[u8]) -> io::Result<()> {
         let mut file = AtomicFile::create(path)?;
         file.write_all(bytes)?;
-        file.commit()
+        file.put_in_place(false)
     }
 
-    /// Flushes the data and renames the temporary file over the target.
-    pub fn commit(mut self) -> io::Result<()> {
+    /// Flushes the data to the disk and renames the temporary file over the target, so even a
+    /// power cut leaves the old file or the whole new one.
+    pub fn commit(self) -> io::Result<()> {
+        self.put_in_place(true)
+    }
+
+    fn put_in_place(mut self, durable: bool) -> io::Result<()> {
         let writer = self.writer.take().expect("commit is called once");
         let file = writer.into_inner().map_err(|e| e.into_error())?;
+        if durable {
+            file.sync_all()?;
+        }
         drop(file);
         std::fs::rename(&self.temporary, &self.path)
         // On error, `drop` removes the temporary file.

@@ -20,9 +20,10 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::{self, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{SystemTime, UNIX_EPOCH};
 
+use crate::atomic::AtomicFile;
 use crate::report::{Row, COLUMNS};
 use crate::rules::{Rule, Severity, Status};
 use crate::scan::Outcome;
@@ -97,6 +98,8 @@ struct Entry {
     shells: Vec<Shell>,
     shell_count: usize,
     picture: Option<String>,
+    /// A picture was drawn but left out (or evicted) to keep the page within its budget.
+    picture_left_out: bool,
 }
 
 impl Entry {
@@ -164,9 +167,11 @@ impl HtmlReport {
             shells,
             shell_count,
             picture: None,
+            picture_left_out: false,
         };
         if let Some(svg) = picture {
             entry.picture = self.make_room(svg, entry.status());
+            entry.picture_left_out = entry.picture.is_none();
         }
         if entry.picture.is_some() && entry.status() == Status::Pass {
             self.pass_pictures.push(self.entries.len());
@@ -182,6 +187,7 @@ impl HtmlReport {
                     break;
                 };
                 if let Some(old) = self.entries[i].picture.take() {
+                    self.entries[i].picture_left_out = true;
                     self.picture_bytes -= old.len();
                     self.pictures_left_out += 1;
                 }
@@ -281,7 +287,9 @@ impl HtmlReport {
 
     /// Renders the page and writes it atomically (a temporary file beside `path`, then a rename).
     pub fn write(&self, path: &Path, meta: &Meta) -> io::Result<()> {
-        write_atomically(path, self.render(meta).as_bytes())
+        let mut file = AtomicFile::create(path)?;
+        file.write_all(self.render(meta).as_bytes())?;
+        file.commit()
     }
 
     fn write_header(&self, out: &mut String, meta: &Meta, summary: &Summary) {
@@ -337,8 +345,14 @@ impl HtmlReport {
         }
         out.push_str("</figure>");
 
-        stacked_chart(out, "Meshes per format", &s.formats, usize::MAX);
-        stacked_chart(out, "Meshes per top-level folder", &s.folders, MAX_FOLDERS);
+        stacked_chart(out, "Meshes per format", "format", &s.formats, usize::MAX);
+        stacked_chart(
+            out,
+            "Meshes per top-level folder",
+            "folder",
+            &s.folders,
+            MAX_FOLDERS,
+        );
         out.push_str("</div>");
     }
 
@@ -483,9 +497,12 @@ impl HtmlReport {
                     u8::from(s.oriented)
                 );
             }
+            // The picture's number; -1: none was drawn, -2: left out for the budget.
             let pic = if e.picture.is_some() {
                 picture += 1;
                 picture - 1
+            } else if e.picture_left_out {
+                -2
             } else {
                 -1
             };
@@ -566,8 +583,15 @@ pub fn explain(rule: Rule) -> (&'static str, &'static str) {
     }
 }
 
-/// A bar chart with one bar per name, split by status.
-fn stacked_chart(out: &mut String, caption: &str, bars: &[(String, [usize; 5])], max: usize) {
+/// A bar chart with one bar per name, split by status; a click filters the table by `kind`
+/// (`format` or `folder`) through the bar's `data-KIND` attribute.
+fn stacked_chart(
+    out: &mut String,
+    caption: &str,
+    kind: &str,
+    bars: &[(String, [usize; 5])],
+    max: usize,
+) {
     let _ = write!(out, "<figure><figcaption>{caption}</figcaption>");
     let most = bars
         .iter()
@@ -585,7 +609,7 @@ fn stacked_chart(out: &mut String, caption: &str, bars: &[(String, [usize; 5])],
             .collect();
         let _ = write!(
             out,
-            "<div class='bar' data-path='{name}' title='{tip}'><span class='label'>{name}</span><span class='track'>",
+            "<div class='bar' data-{kind}='{name}' title='{tip}'><span class='label'>{name}</span><span class='track'>",
             name = escape(name),
             tip = escape(&tip.join(", "))
         );
@@ -707,21 +731,6 @@ fn is_json_number(cell: &str) -> bool {
             .all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'.' | b'e'))
         && !(bytes.len() > 1 && first == b'0' && bytes[1].is_ascii_digit())
         && cell.parse::<f64>().is_ok_and(f64::is_finite)
-}
-
-/// Writes `bytes` to a temporary file beside `path`, then renames it over `path`.
-fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let name = path
-        .file_name()
-        .map_or_else(|| "report.html".into(), |n| n.to_string_lossy());
-    let temporary: PathBuf = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let result = std::fs::File::create(&temporary)
-        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()))
-        .and_then(|()| std::fs::rename(&temporary, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temporary);
-    }
-    result
 }
 
 #[cfg(test)]
@@ -892,6 +901,12 @@ mod tests {
         r.add(with_picture(Status::Fail)); // evicts the first pass picture
         assert_eq!(r.pictures_left_out(), 2);
         let kept: Vec<bool> = r.entries.iter().map(|e| e.picture.is_some()).collect();
+        let left_out: Vec<bool> = r.entries.iter().map(|e| e.picture_left_out).collect();
+        assert_eq!(
+            left_out,
+            [true, true, false],
+            "each row knows its own picture was left out"
+        );
         assert_eq!(kept, [false, false, true]);
         assert!(r.picture_bytes <= PICTURE_BUDGET);
     }
