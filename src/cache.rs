@@ -5,9 +5,11 @@
 //! setting that can change a row: severities, weld tolerance, limits; not `jobs` or the
 //! include/exclude globs, which only choose files), the file's report path, and the bytes of the
 //! file and of everything its rows depend on: for `.obj`, every `mtllib` it names; for `.gltf` and
-//! `.glb`, every external `buffers[].uri` and `images[].uri`. A dependency that is missing, or that
-//! the reader would refuse (absolute, a URI scheme), is hashed as such, so it appearing later
-//! changes the key.
+//! `.glb`, every external `buffers[].uri` and `images[].uri`. Dependencies are found by the readers'
+//! own rule ([`crate::formats::contain`]): one that is missing, or that the reader would refuse
+//! (absolute, a URI scheme, outside the scanned tree before or after symbolic links, not a regular
+//! file), is hashed as `unavailable` and never looked at, so nothing outside the tree is read, and
+//! it becoming available later changes the key.
 //!
 //! **Entry.** `DIR/xx/<hash of the file's identity>` (absolute path, scanned root and report path),
 //! so a changed file overwrites its one entry instead of piling up new ones. It holds a header
@@ -32,7 +34,8 @@
 //! for the HTML report) are not cached; callers that need details bypass the cache.
 
 use std::io::{self, Read};
-use std::path::{Component, Path, PathBuf};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -40,6 +43,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::atomic::AtomicFile;
 use crate::config::Settings;
+use crate::formats::contain::Location;
 use crate::formats::Format;
 use crate::report::{Row, ShellRow};
 use crate::rules::{Finding, Rule, Severity, Status};
@@ -48,7 +52,7 @@ use crate::topology::Role;
 use crate::walk::Source;
 
 /// First line of every entry; bump the number when the payload changes shape.
-const HEADER: &str = "meshvet-cache 1";
+const HEADER: &str = "meshvet-cache 2";
 
 /// An open cache folder.
 pub struct Cache {
@@ -98,31 +102,69 @@ impl Cache {
     }
 
     /// The outcomes of `source`: from its entry when the entry is valid for the file as it is now,
-    /// else from `fresh` (then stored). Never fails: cache trouble only costs time.
+    /// else from `fresh` (then stored). Never fails: cache trouble only costs time. A panic in the
+    /// lookup falls back to `fresh`, and one while storing keeps the fresh outcomes, so the cache
+    /// can never lose a result.
     pub fn outcomes(&self, source: &Source, fresh: impl FnOnce() -> Vec<Outcome>) -> Vec<Outcome> {
         let start = Instant::now();
         if source.error.is_some() || source.format.is_none() {
             return fresh();
         }
+        let miss = match catch_unwind(AssertUnwindSafe(|| self.lookup(source, start))) {
+            Ok(Lookup::Hit(outcomes)) => return outcomes,
+            Ok(Lookup::Miss(miss)) => miss,
+            Ok(Lookup::Uncacheable) | Err(_) => return fresh(),
+        };
+        self.misses.fetch_add(1, Ordering::Relaxed);
+        let outcomes = fresh();
+        let storable = outcomes
+            .iter()
+            .all(|o| o.row.status != Some(Status::Error) && o.detail.is_none());
+        if storable {
+            let written = catch_unwind(AssertUnwindSafe(|| {
+                encode(&outcomes).and_then(|payload| {
+                    write_entry(&miss.path, &miss.key, &miss.content, &miss.meta, &payload)
+                })
+            }));
+            if !matches!(written, Ok(Ok(()))) {
+                self.write_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        outcomes
+    }
+
+    /// The cached outcomes of `source` if its entry is valid, else what storing fresh ones needs.
+    fn lookup(&self, source: &Source, start: Instant) -> Lookup {
         let hit = |outcomes: Vec<Outcome>| {
             self.hits.fetch_add(1, Ordering::Relaxed);
             let millis = (start.elapsed().as_secs_f64() * 1e6).round() / 1e3;
-            outcomes
-                .into_iter()
-                .map(|mut o| {
-                    o.row.millis = Some(millis);
-                    o
-                })
-                .collect()
+            Lookup::Hit(
+                outcomes
+                    .into_iter()
+                    .map(|mut o| {
+                        o.row.millis = Some(millis);
+                        o
+                    })
+                    .collect(),
+            )
+        };
+        let Some(format) = source.format else {
+            return Lookup::Uncacheable;
         };
         let path = self.entry_path(source);
         let entry = read_entry(&path);
-        let folder = source.path.parent().unwrap_or(Path::new(""));
+        // Where the file's dependencies may be: `None` when the tree cannot be resolved (then
+        // every dependency is unavailable, as it is to the reader).
+        let location = Location::new(&source.path, &source.root).ok();
+        let deps = Dependencies {
+            format,
+            location: location.as_ref(),
+        };
         // Fast path: the file and its dependencies carry the stamps they had when the entry was
         // written, long enough before it that a later change must have changed a stamp; the
         // content hash is then the stored one (and the key must still match these settings).
         if let Some(e) = &entry {
-            let unchanged = stamps(&source.path, folder, &e.meta.dependencies)
+            let unchanged = stamps(&source.path, &deps, &e.meta.dependencies)
                 .is_some_and(|now| now == e.meta.stamps && settled(&now, e.meta.written));
             if unchanged && self.key(source, &e.content) == e.key {
                 if let Some(outcomes) = decode(&e.payload) {
@@ -132,8 +174,8 @@ impl Cache {
             }
         }
         // Content path: hash the file and its dependencies.
-        let Some((content, dependencies, stamps)) = self.content(source) else {
-            return fresh();
+        let Some((content, dependencies, stamps)) = self.content(source, &deps) else {
+            return Lookup::Uncacheable;
         };
         let key = self.key(source, &content);
         let meta = Meta {
@@ -149,38 +191,33 @@ impl Cache {
                 return hit(outcomes);
             }
         }
-        self.misses.fetch_add(1, Ordering::Relaxed);
-        let outcomes = fresh();
-        let storable = outcomes
-            .iter()
-            .all(|o| o.row.status != Some(Status::Error) && o.detail.is_none());
-        if storable {
-            let written = encode(&outcomes)
-                .and_then(|payload| write_entry(&path, &key, &content, &meta, &payload));
-            if written.is_err() {
-                self.write_errors.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-        outcomes
+        Lookup::Miss(Miss {
+            path,
+            key,
+            content,
+            meta,
+        })
     }
 
     /// blake3 of the file's bytes and its dependencies' (see the module docs), the dependencies'
-    /// names and the stamps taken before reading; `None` when the file cannot be cached
-    /// (unreadable, over the size limit: the fresh scan says why).
-    fn content(&self, source: &Source) -> Option<(blake3::Hash, Vec<String>, Option<Vec<String>>)> {
-        let format = source.format?;
-        let size = std::fs::metadata(&source.path).ok()?.len();
-        if size > self.max_file_bytes {
+    /// names and the stamps taken before reading; `None` when the file cannot be cached (not a
+    /// regular file, unreadable, over the size limit: the fresh scan says why).
+    fn content(
+        &self,
+        source: &Source,
+        deps: &Dependencies<'_>,
+    ) -> Option<(blake3::Hash, Vec<String>, Option<Vec<String>>)> {
+        let meta = std::fs::metadata(&source.path).ok()?;
+        if !meta.is_file() || meta.len() > self.max_file_bytes {
             return None;
         }
-        let folder = source.path.parent().unwrap_or(Path::new(""));
-        let before = stamps(&source.path, folder, &[]);
+        let before = stamps(&source.path, deps, &[]);
         let bytes = std::fs::read(&source.path).ok()?;
-        let dependencies = dependencies(format, &bytes);
+        let dependencies = dependencies(deps.format, &bytes);
         // Stamps of the dependencies too; the file's own was taken before reading it.
         let stamps = before.and_then(|mut own| {
             own.extend(
-                stamps(&source.path, folder, &dependencies)?
+                stamps(&source.path, deps, &dependencies)?
                     .into_iter()
                     .skip(1),
             );
@@ -190,11 +227,9 @@ impl Cache {
         field(&mut hasher, &bytes);
         for dependency in &dependencies {
             field(&mut hasher, dependency.as_bytes());
-            match safe_relative(dependency) {
-                Some(relative) => {
-                    hash_file(&mut hasher, &folder.join(relative), self.max_file_bytes)
-                }
-                None => field(&mut hasher, b"refused"),
+            match deps.resolve(dependency) {
+                Some(path) => hash_file(&mut hasher, &path, self.max_file_bytes),
+                None => field(&mut hasher, b"unavailable"),
             }
         }
         Some((hasher.finalize(), dependencies, stamps))
@@ -231,6 +266,36 @@ impl Cache {
 fn field(hasher: &mut blake3::Hasher, bytes: &[u8]) {
     hasher.update(&(bytes.len() as u64).to_le_bytes());
     hasher.update(bytes);
+}
+
+/// What a lookup found.
+enum Lookup {
+    Hit(Vec<Outcome>),
+    Miss(Miss),
+    /// Not a file the cache can take (the fresh scan says why).
+    Uncacheable,
+}
+
+/// What storing the fresh outcomes of a miss needs.
+struct Miss {
+    path: PathBuf,
+    key: blake3::Hash,
+    content: blake3::Hash,
+    meta: Meta,
+}
+
+/// How a file's dependencies are found: by the reader's own rule for its format
+/// ([`crate::formats::dependency`]), so the cache never looks at a file the reader would refuse.
+struct Dependencies<'a> {
+    format: Format,
+    location: Option<&'a Location>,
+}
+
+impl Dependencies<'_> {
+    /// The real path of dependency `name`, if the reader would read it.
+    fn resolve(&self, name: &str) -> Option<PathBuf> {
+        crate::formats::dependency(self.format, name, self.location?)
+    }
 }
 
 /// Hashes a dependency's bytes, or what it is when it cannot be read as a regular file.
@@ -310,8 +375,9 @@ fn mtllibs(bytes: &[u8]) -> Vec<String> {
     names
 }
 
-/// The external `buffers[].uri` and `images[].uri` of a glTF or GLB file (percent-decoded), or none
-/// when its JSON cannot be found or parsed (the reader will then report the file).
+/// The external `buffers[].uri` and `images[].uri` of a glTF or GLB file (as written: the reader's
+/// rule decodes them), or none when its JSON cannot be found or parsed (the reader will then report
+/// the file).
 fn gltf_uris(bytes: &[u8]) -> Vec<String> {
     let json = if bytes.starts_with(b"glTF") {
         // GLB: 12-byte header, then the JSON chunk (length, type, data).
@@ -333,51 +399,16 @@ fn gltf_uris(bytes: &[u8]) -> Vec<String> {
     for list in ["buffers", "images"] {
         for item in value[list].as_array().into_iter().flatten() {
             if let Some(uri) = item["uri"].as_str() {
-                if !uri.starts_with("data:") {
-                    uris.push(percent_decode(uri));
+                if !uri
+                    .get(..5)
+                    .is_some_and(|s| s.eq_ignore_ascii_case("data:"))
+                {
+                    uris.push(uri.to_owned());
                 }
             }
         }
     }
     uris
-}
-
-fn percent_decode(uri: &str) -> String {
-    let bytes = uri.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        let hex = bytes
-            .get(i + 1..i + 3)
-            .and_then(|h| std::str::from_utf8(h).ok())
-            .and_then(|h| u8::from_str_radix(h, 16).ok());
-        match (bytes[i], hex) {
-            (b'%', Some(b)) => {
-                out.push(b);
-                i += 3;
-            }
-            (b, _) => {
-                out.push(b);
-                i += 1;
-            }
-        }
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
-/// `name` as a relative path without a scheme, or `None` (the readers refuse those and never open
-/// them; neither does the cache).
-fn safe_relative(name: &str) -> Option<&Path> {
-    let path = Path::new(name);
-    let plain = !name.contains(':')
-        && !name.starts_with(['/', '\\'])
-        && path.components().all(|c| {
-            matches!(
-                c,
-                Component::Normal(_) | Component::CurDir | Component::ParentDir
-            )
-        });
-    plain.then_some(path)
 }
 
 /// `(faces, holes, genus, volume as text, depth, role, inside_out)`.
@@ -571,16 +602,18 @@ fn now_secs() -> u64 {
         .map_or(0, |d| d.as_secs())
 }
 
-/// Stamps of `file` and of each dependency (relative to `folder`): size, modification and change
-/// times to the nanosecond, inode and device, or `missing`. The change time cannot be set by any
-/// tool (`touch -d`, `tar`, `rsync -t` set only the modification time), so new content under an
-/// old modification time still changes the stamp. `None` where the platform has no such stamps.
-fn stamps(file: &Path, folder: &Path, dependencies: &[String]) -> Option<Vec<String>> {
+/// Stamps of `file` and of each dependency (where the reader's rule resolves it): size,
+/// modification and change times to the nanosecond, inode and device, or `missing`; a dependency
+/// the reader would not read (outside the tree, not a regular file, not there) is `unavailable`
+/// and is never looked at. The change time cannot be set by any tool (`touch -d`, `tar`,
+/// `rsync -t` set only the modification time), so new content under an old modification time
+/// still changes the stamp. `None` where the platform has no such stamps.
+fn stamps(file: &Path, deps: &Dependencies<'_>, dependencies: &[String]) -> Option<Vec<String>> {
     let mut stamps = vec![stamp(file)?];
     for d in dependencies {
-        stamps.push(match safe_relative(d) {
-            Some(relative) => stamp(&folder.join(relative))?,
-            None => "refused".to_owned(),
+        stamps.push(match deps.resolve(d) {
+            Some(path) => stamp(&path)?,
+            None => "unavailable".to_owned(),
         });
     }
     Some(stamps)
@@ -617,7 +650,7 @@ fn settled(stamps: &[String], written: u64) -> bool {
         let ctime = s.split(' ').nth(2).and_then(|t| t.split('.').next());
         match ctime.and_then(|t| t.parse::<i64>().ok()) {
             Some(ctime) => ctime.saturating_add(2) <= written as i64,
-            // `missing` or `refused`: nothing that could change silently.
+            // `missing` or `unavailable`: nothing that could change silently.
             None => !s.starts_with(char::is_numeric),
         }
     })
@@ -697,7 +730,7 @@ mod tests {
         };
         let foreign = String::from_utf8(good.clone())
             .unwrap()
-            .replacen("meshvet-cache 1", "meshvet-cache 0", 1)
+            .replacen(HEADER, "meshvet-cache 0", 1)
             .into_bytes();
         for bad in [
             flip_last,
@@ -762,6 +795,65 @@ mod tests {
         assert_eq!(cache.stats().misses, misses + 1);
     }
 
+    /// A file in the tree that names `dependency`, which `place` puts outside the tree (or links
+    /// to from inside); the outside file then changes. The cache must not have looked at it: the
+    /// second lookup is a hit (before, its bytes were in the key, so it was a miss).
+    fn outside_dependency_is_never_read(name: &str, text: &str, place: impl Fn(&Path)) {
+        let dir = tempfile::tempdir().unwrap();
+        let tree = dir.path().join("tree");
+        std::fs::create_dir(&tree).unwrap();
+        std::fs::write(tree.join(name), text).unwrap();
+        std::fs::write(dir.path().join("outside.bin"), "secret").unwrap();
+        place(dir.path());
+        let cache = Cache::open(&dir.path().join("cache"), &Settings::default()).unwrap();
+        let source = walk(&[tree], &Filter::everything()).remove(0);
+        let settings = Settings::default();
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        std::fs::write(dir.path().join("outside.bin"), "changed secret").unwrap();
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        assert_eq!(cache.stats().hits, 1, "{name}: the outside file was read");
+    }
+
+    /// A glTF whose rows do not depend on its image (error rows are never stored, so the name
+    /// is an image: the reader ignores it, the cache hashes it).
+    const GLTF: &str = r#"{"asset":{"version":"2.0"},"images":[{"uri":"URI"}],
+        "meshes":[{"primitives":[{"attributes":{}}]}]}"#;
+
+    #[test]
+    fn dependencies_outside_the_tree_are_never_read() {
+        outside_dependency_is_never_read(
+            "m.obj",
+            &format!("mtllib ../outside.bin\n{OPEN}"),
+            |_| {},
+        );
+        outside_dependency_is_never_read("m.gltf", &GLTF.replace("URI", "../outside.bin"), |_| {});
+        outside_dependency_is_never_read(
+            "m.gltf",
+            &GLTF.replace("URI", "..%2Foutside.bin"),
+            |_| {},
+        );
+        #[cfg(unix)]
+        {
+            let link = |dir: &Path| {
+                std::os::unix::fs::symlink(dir.join("outside.bin"), dir.join("tree/link.bin"))
+                    .unwrap()
+            };
+            outside_dependency_is_never_read("m.obj", &format!("mtllib link.bin\n{OPEN}"), link);
+            outside_dependency_is_never_read("m.gltf", &GLTF.replace("URI", "link.bin"), link);
+        }
+    }
+
+    #[test]
+    fn a_dependency_inside_the_tree_is_still_hashed() {
+        let (dir, cache, source) = setup();
+        let settings = Settings::default();
+        std::fs::write(dir.path().join("tree/a.mtl"), "newmtl x\n").unwrap();
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        std::fs::write(dir.path().join("tree/a.mtl"), "newmtl y\n").unwrap();
+        cache.outcomes(&source, || scan_file(&source, &settings));
+        assert_eq!(cache.stats().misses, 2);
+    }
+
     #[test]
     fn dependencies_are_found_in_obj_gltf_and_glb() {
         assert_eq!(
@@ -771,15 +863,12 @@ mod tests {
         let gltf = br#"{"buffers":[{"uri":"../buffers/x%20y.bin"},{"uri":"data:,"}],"images":[{"uri":"t.png"}]}"#;
         assert_eq!(
             dependencies(Format::Gltf, gltf),
-            ["../buffers/x y.bin", "t.png"]
+            ["../buffers/x%20y.bin", "t.png"]
         );
         let mut glb = b"glTF\x02\0\0\0\0\0\0\0".to_vec();
         glb.extend_from_slice(&(gltf.len() as u32).to_le_bytes());
         glb.extend_from_slice(b"JSON");
         glb.extend_from_slice(gltf);
         assert_eq!(dependencies(Format::Glb, &glb).len(), 2);
-        assert_eq!(safe_relative("/etc/passwd"), None);
-        assert_eq!(safe_relative("file:x.bin"), None);
-        assert!(safe_relative("../b/x.bin").is_some());
     }
 }

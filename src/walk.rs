@@ -1,7 +1,9 @@
 //! The sorted list of files a scan reads. Folders are walked recursively (symlinks are not followed,
 //! so a link loop cannot trap the walk); a file named on the command line is taken alone. Only the
 //! mesh extensions count in folders (`.obj .gltf .glb .stl .ply .off`, any case); a file named
-//! explicitly is always listed, so a wrong extension becomes an `error` row rather than silence.
+//! explicitly is always listed, so a wrong extension becomes an `error` row rather than silence, and
+//! so does a named path that is not a regular file (a FIFO or device: reading it would block). In
+//! folders only regular files are listed.
 //!
 //! Report paths: with one PATH, a file's path is relative to that PATH (a folder, or the folder of a
 //! file) with `/` separators. With several PATHs each file's path is the PATH as written (without a
@@ -111,8 +113,11 @@ pub fn walk(paths: &[PathBuf], filter: &Filter) -> Vec<Source> {
                 Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
                 _ => PathBuf::from("."),
             };
+            // Only regular files are read: a FIFO or a device named here would block the scan.
             let error = match std::fs::metadata(given) {
-                Ok(_) => None,
+                Ok(meta) => {
+                    crate::formats::not_regular(&meta).map(crate::formats::not_regular_message)
+                }
                 Err(e) => Some(format!("cannot open the file: {e}")),
             };
             sources.push(Source {
@@ -285,6 +290,23 @@ mod tests {
     fn slashed_joins_with_forward_slashes() {
         assert_eq!(slashed(Path::new("./a/b/c.obj")), "a/b/c.obj");
         assert_eq!(slashed(Path::new("/abs/c.obj")), "/abs/c.obj");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_named_fifo_is_an_error_entry_and_a_walked_one_is_skipped() {
+        let dir = tree(&["a.stl"]);
+        let fifo = dir.path().join("pipe.stl");
+        let status = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let named = walk(&[fifo], &Filter::everything());
+        let error = named[0].error.as_deref().unwrap_or("");
+        assert!(error.contains("not a regular file (a FIFO"), "{error}");
+        let walked = walk(&[dir.path().to_owned()], &Filter::everything());
+        assert_eq!(displays(&walked), ["a.stl"]);
     }
 
     #[cfg(unix)]

@@ -123,7 +123,7 @@ fn obj_mtl_that_crashes_tobj_is_a_note() {
     std::fs::write(&obj, "mtllib ../m.mtl\nv 0 0 0\n").unwrap();
     let m = load_path(&obj, dir.path()).unwrap();
     assert!(
-        m.notes[0].contains("leaves the OBJ's folder"),
+        m.notes[0].contains("leaves the scanned folder"),
         "{:?}",
         m.notes
     );
@@ -391,5 +391,215 @@ fn corpus() {
     assert!(
         mismatches.is_empty(),
         "triangle counts differ: {mismatches:#?}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Audit regressions: hangs, blocking reads, reads outside the tree, refused padding
+
+/// Runs `f` on another thread and fails the test if it takes longer than `seconds` (a hang must
+/// fail the test, not stall the suite forever).
+fn within<T: Send + 'static>(seconds: u64, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (send, receive) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = send.send(f());
+    });
+    receive
+        .recv_timeout(std::time::Duration::from_secs(seconds))
+        .unwrap_or_else(|_| panic!("did not finish within {seconds} s"))
+}
+
+fn load_owned(name: &'static str, bytes: Vec<u8>) -> Result<Mesh, ReadError> {
+    load(name, &bytes)
+}
+
+/// A PLY with one triangle and an element `junk` with 2^64 - 1 entries and no properties.
+fn ply_with_empty_element(format: &str) -> Vec<u8> {
+    let mut b = format!(
+        "ply\nformat {format} 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+         property float z\nelement junk 18446744073709551615\nelement face 1\n\
+         property list uchar int vertex_indices\nend_header\n"
+    )
+    .into_bytes();
+    if format == "ascii" {
+        b.extend(b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    } else {
+        for c in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            b.extend(c.to_le_bytes());
+        }
+        b.push(3);
+        for i in [0i32, 1, 2] {
+            b.extend(i.to_le_bytes());
+        }
+    }
+    b
+}
+
+#[test]
+fn ply_element_without_properties_and_a_huge_count_does_not_hang() {
+    for format in ["binary_little_endian", "ascii"] {
+        let bytes = ply_with_empty_element(format);
+        let m = within(20, move || load_owned("junk.ply", bytes))
+            .unwrap_or_else(|e| panic!("{format}: {e}"));
+        assert_eq!(m.triangles, vec![[0, 1, 2]], "{format}");
+        assert!(
+            m.notes
+                .iter()
+                .any(|n| n.contains("`junk`") && n.contains("no properties")),
+            "{format}: {:?}",
+            m.notes
+        );
+    }
+}
+
+#[test]
+fn stl_binary_with_trailing_bytes_is_read_with_a_note() {
+    let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    // Padded by 3 bytes, and by two facets' worth: the declared 2 triangles are read.
+    for extra in [3usize, 100] {
+        let mut b = binary_stl(&[t, t]);
+        b.extend(vec![0u8; extra]);
+        let m = ok("p.stl", &b);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(m.positions[1], [1.0, 0.0, 0.0]);
+        let note = m.notes.join("\n");
+        assert!(
+            note.contains(&format!("{extra} byte(s) after the 2 triangles")),
+            "{note}"
+        );
+        assert_eq!(
+            note.contains("room for 2 more facet"),
+            extra == 100,
+            "{note}"
+        );
+    }
+    // The header starts with `solid` (binary_stl writes that) and the data is binary: still
+    // binary, not misread as ASCII, padded or not.
+    let mut b = binary_stl(&[t]);
+    assert!(b.starts_with(b"solid"));
+    b.push(b'\n');
+    assert_eq!(ok("s.stl", &b).triangles.len(), 1);
+    // Shorter than declared stays an error.
+    let mut b = binary_stl(&[t, t]);
+    b.truncate(b.len() - 1);
+    assert!(err("short.stl", &b).contains("truncated binary STL"));
+}
+
+#[test]
+fn huge_concave_polygon_is_split_quickly() {
+    // An outward spiral turning a little more than 120 degrees per corner: no corner is a proper
+    // ear and every ear test runs to the end. The old clipper took O(n^3) on it (minutes at 4096
+    // vertices); now it is over the ear-clipping limit and split as a fan, with a note.
+    let n = 4096;
+    let mut obj = String::new();
+    for i in 0..n {
+        let (a, r) = (i as f64 * 2.1, 1.001f64.powi(i));
+        obj.push_str(&format!("v {} {} 0\n", r * a.cos(), r * a.sin()));
+    }
+    obj.push('f');
+    for i in 1..=n {
+        obj.push_str(&format!(" {i}"));
+    }
+    obj.push('\n');
+    let m = within(20, move || load_owned("spiral.obj", obj.into_bytes())).unwrap();
+    assert_eq!(m.triangles.len(), n as usize - 2);
+    assert!(
+        m.notes
+            .iter()
+            .any(|n| n.contains("more than 1024 vertices")),
+        "{:?}",
+        m.notes
+    );
+}
+
+#[cfg(unix)]
+fn mkfifo(path: &Path) {
+    let status = std::process::Command::new("mkfifo")
+        .arg(path)
+        .status()
+        .expect("mkfifo runs");
+    assert!(status.success());
+}
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_is_not_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.stl");
+    mkfifo(&fifo);
+    let root = dir.path().to_path_buf();
+    let e = within(20, move || load_path(&fifo, &root)).unwrap_err().0;
+    assert!(
+        e.contains("not a regular file") && e.contains("FIFO"),
+        "{e}"
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn mtl_is_read_only_when_it_is_a_regular_file_inside_the_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    std::fs::create_dir(&tree).unwrap();
+    // Outside the tree: a library that would give a note naming its bad colour line if read.
+    std::fs::write(dir.path().join("secret.mtl"), "newmtl x\nKd 1 0\n").unwrap();
+    std::os::unix::fs::symlink(dir.path().join("secret.mtl"), tree.join("link.mtl")).unwrap();
+    mkfifo(&tree.join("pipe.mtl"));
+    std::fs::write(tree.join("plain.mtl"), "newmtl x\nKd 1 0\n").unwrap();
+    let obj = tree.join("m.obj");
+    std::fs::write(
+        &obj,
+        "mtllib link.mtl\nmtllib pipe.mtl\nmtllib plain.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let cx = ReadContext {
+        root: tree.clone(),
+        limits: Limits::default(),
+    };
+    let notes = within(20, move || {
+        meshvet::formats::read(&obj, Format::Obj, &cx).map(|mut m| m.pop().unwrap().notes)
+    })
+    .unwrap()
+    .join("\n");
+    assert!(
+        notes.contains(
+            "`link.mtl` (line 1) not read: it resolves, through a symbolic link, outside"
+        ),
+        "{notes}"
+    );
+    assert!(
+        !notes.contains("`link.mtl` line"),
+        "the outside file was read: {notes}"
+    );
+    assert!(
+        notes.contains("`pipe.mtl` (line 2) not read: it is not a regular file"),
+        "{notes}"
+    );
+    // A regular file inside the tree is read (and its bad colour line named).
+    assert!(notes.contains("`plain.mtl` line 2: colour `Kd`"), "{notes}");
+}
+
+#[test]
+fn mtl_over_the_size_limit_is_not_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("m.obj");
+    let geometry = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    std::fs::write(&obj, format!("mtllib m.mtl\n{geometry}")).unwrap();
+    let big = format!("newmtl x\nKd 1 0\n{}", "# padding\n".repeat(20));
+    std::fs::write(dir.path().join("m.mtl"), &big).unwrap();
+    let limit = (geometry.len() + 20) as u64;
+    assert!((big.len() as u64) > limit);
+    let cx = ReadContext {
+        root: dir.path().to_path_buf(),
+        limits: Limits {
+            max_file_bytes: limit,
+            ..Limits::default()
+        },
+    };
+    let notes = read(&obj, Format::Obj, &cx).unwrap().pop().unwrap().notes;
+    let notes = notes.join("\n");
+    assert!(
+        notes.contains("`m.mtl` (line 1) not read: it is over the limit"),
+        "{notes}"
     );
 }

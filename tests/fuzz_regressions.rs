@@ -88,3 +88,40 @@ fn empty_and_garbage_inputs_do_not_panic() {
         let _ = fuzz_path(format, b"\xff\xfe\x00garbage\n\x00\x00");
     }
 }
+
+/// [`fuzz_path`] on another thread, failing if it takes more than `seconds` (a hang is a finding
+/// too, and must fail the test rather than stall the suite).
+fn fuzz_path_within(seconds: u64, format: Format, bytes: Vec<u8>) -> Result<Vec<usize>, String> {
+    let (send, receive) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = send.send(fuzz_path(format, &bytes));
+    });
+    receive
+        .recv_timeout(std::time::Duration::from_secs(seconds))
+        .unwrap_or_else(|_| panic!("{format} input did not finish within {seconds} s"))
+}
+
+#[test]
+fn audit_hang_and_expansion_inputs() {
+    // A binary PLY element with no properties and 2^64 - 1 entries: each entry is 0 bytes, so the
+    // size check passed and the skip loop never ended.
+    let ply =
+        b"ply\nformat binary_little_endian 1.0\nelement junk 18446744073709551615\nend_header\n";
+    assert_eq!(fuzz_path_within(20, Format::Ply, ply.to_vec()), Ok(vec![0]));
+    // An accessor with no buffer view and 900,000 elements (within these limits) in a 200-byte
+    // glTF: with the default limits, 10^8 of them gave 2.4 GB of zeros.
+    let gltf = br#"{"asset":{"version":"2.0"},"accessors":[{"componentType":5126,"type":"VEC3","count":900000}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#;
+    let e = fuzz_path_within(20, Format::Gltf, gltf.to_vec()).unwrap_err();
+    assert!(e.contains("far more than this file's"), "{e}");
+    // Binary STL padded after its declared facets: read, not refused.
+    let mut stl = vec![0u8; 80];
+    stl.extend(1u32.to_le_bytes());
+    stl.extend([0u8; 12]);
+    stl.extend(
+        [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+            .map(f32::to_le_bytes)
+            .concat(),
+    );
+    stl.extend([0u8; 2 + 7]);
+    assert_eq!(fuzz_path_within(20, Format::Stl, stl), Ok(vec![1]));
+}

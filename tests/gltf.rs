@@ -950,3 +950,199 @@ fn corpus_triangle_counts_match_the_references() {
     assert!(compared >= 60, "only {compared} files compared");
     assert!(mismatches.is_empty(), "{}", mismatches.join("\n"));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Audit regressions: expansion without data, per-file totals, compression used without being
+// required, GPU instancing
+
+#[test]
+fn accessor_without_buffer_view_cannot_expand_past_the_input() {
+    // 100 million zero positions (2.4 GB decoded) declared in a file of a few hundred bytes.
+    let json = doc(&[
+        (
+            "accessors",
+            r#"[{"componentType":5126,"type":"VEC3","count":100000000}]"#.into(),
+        ),
+        (
+            "meshes",
+            r#"[{"primitives":[{"attributes":{"POSITION":0}}]}]"#.into(),
+        ),
+    ]);
+    assert!(json.len() < 300);
+    let err = read_err("zeros.gltf", &json);
+    assert!(
+        err.contains("accessor without a buffer view declares 100000000 elements")
+            && err.contains("far more than this file's"),
+        "{err}"
+    );
+    // A few zero positions are fine (a degenerate but honest file).
+    let json = json.replace("100000000", "3");
+    let meshes = read_ok("few.gltf", &json);
+    assert_eq!(meshes[0].positions, vec![[0.0; 3]; 3]);
+    assert_eq!(meshes[0].triangles.len(), 1);
+}
+
+#[test]
+fn many_primitives_reusing_one_accessor_are_bounded_per_file() {
+    // One 3-vertex accessor in a GLB, read by 1000 primitives over 10 meshes.
+    let primitive = r#"{"attributes":{"POSITION":0}}"#;
+    let primitives = vec![primitive; 100].join(",");
+    let meshes = format!(
+        "[{}]",
+        vec![format!(r#"{{"primitives":[{primitives}]}}"#); 10].join(",")
+    );
+    let bin = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
+    let json = Asset::new(None, 36, &meshes)
+        .view(0, 36)
+        .accessor(0, FLOAT, "VEC3", 3)
+        .json();
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), "reuse.glb", glb(&json, &bin));
+    let mut context = cx(dir.path());
+    // Each mesh alone (300 vertices, 100 triangles) is within 2000; the file (3000) is not.
+    context.limits.max_triangles = 2000;
+    let err = read(&path, Format::Glb, &context).unwrap_err().0;
+    assert!(
+        err.contains("in all, over the limit of 2000 per file") && err.contains("vertices"),
+        "{err}"
+    );
+    context.limits.max_triangles = 3000;
+    let meshes = read(&path, Format::Glb, &context).unwrap();
+    assert_eq!(meshes.len(), 10);
+    assert!(meshes.iter().all(|m| m.triangles.len() == 100));
+}
+
+#[test]
+fn draco_on_a_primitive_without_being_required_is_named() {
+    // The Draco primitive's POSITION accessor has no buffer view: without the extension it would
+    // read as zeros.
+    let json = doc(&[
+        ("extensionsUsed", r#"["KHR_draco_mesh_compression"]"#.into()),
+        (
+            "accessors",
+            r#"[{"componentType":5126,"type":"VEC3","count":3}]"#.into(),
+        ),
+        (
+            "meshes",
+            r#"[{"name":"d","primitives":[{"attributes":{"POSITION":0},
+                "extensions":{"KHR_draco_mesh_compression":{"bufferView":0,"attributes":{"POSITION":0}}}}]}]"#
+                .into(),
+        ),
+    ]);
+    let err = read_err("draco.gltf", json);
+    assert!(
+        err.contains("mesh \"d\" (#0) primitive 0 is compressed with KHR_draco_mesh_compression, which meshvet cannot decode"),
+        "{err}"
+    );
+    // With the uncompressed fallback the extension allows, the fallback is read, with a note.
+    let json = triangle_with(
+        r#"[{"primitives":[{"attributes":{"POSITION":0},
+            "extensions":{"KHR_draco_mesh_compression":{"bufferView":0,"attributes":{"POSITION":0}}}}]}]"#,
+        &[("extensionsUsed", r#"["KHR_draco_mesh_compression"]"#)],
+    );
+    let meshes = read_ok("fallback.gltf", json);
+    assert_eq!(meshes[0].positions[1], [1.0, 0.0, 0.0]);
+    assert!(
+        meshes[0]
+            .notes
+            .iter()
+            .any(|n| n.contains("uncompressed fallback")),
+        "{:?}",
+        meshes[0].notes
+    );
+}
+
+#[test]
+fn meshopt_buffer_view_without_being_required_is_named() {
+    let meshopt = r#"{"buffer":0,"byteOffset":0,"byteLength":36,
+        "extensions":{"EXT_meshopt_compression":{"buffer":1,"byteLength":20,"byteStride":12,"count":3,"mode":"ATTRIBUTES"}}}"#;
+    // Buffer 1 is the compressed data; buffer 0, which the view reads, is a fallback placeholder.
+    let json = doc(&[
+        ("extensionsUsed", r#"["EXT_meshopt_compression"]"#.into()),
+        (
+            "buffers",
+            format!(
+                r#"[{{"byteLength":36,"extensions":{{"EXT_meshopt_compression":{{"fallback":true}}}}}},
+                    {{"uri":"{}","byteLength":20}}]"#,
+                data_uri(&[0; 20])
+            ),
+        ),
+        ("bufferViews", format!("[{meshopt}]")),
+        (
+            "accessors",
+            r#"[{"bufferView":0,"componentType":5126,"type":"VEC3","count":3}]"#.into(),
+        ),
+        (
+            "meshes",
+            r#"[{"primitives":[{"attributes":{"POSITION":0}}]}]"#.into(),
+        ),
+    ]);
+    let err = read_err("meshopt.gltf", json);
+    assert!(
+        err.contains("reads buffer view 0, compressed with EXT_meshopt_compression, which meshvet cannot decode"),
+        "{err}"
+    );
+    // A view whose own buffer holds real (fallback) data is read, with a note.
+    let json = triangle().replace(
+        r#""bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36}]"#,
+        &format!("\"bufferViews\":[{meshopt}]"),
+    );
+    assert!(json.contains("EXT_meshopt_compression"));
+    let meshes = read_ok("fallback.gltf", json);
+    assert_eq!(meshes[0].triangles.len(), 1);
+    assert!(
+        meshes[0]
+            .notes
+            .iter()
+            .any(|n| n.contains("EXT_meshopt_compression")),
+        "{:?}",
+        meshes[0].notes
+    );
+}
+
+#[test]
+fn gpu_instances_with_a_negative_scale_product_are_mirrored() {
+    // Positions (36 bytes) then the SCALE of five instances: (1,1,1), (-1,1,1), (-1,-1,1),
+    // (1,1,-2), (2,2,2): two of them mirror the mesh, three do not.
+    let mut bin = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
+    bin.extend(f32s(&[
+        1., 1., 1., -1., 1., 1., -1., -1., 1., 1., 1., -2., 2., 2., 2.,
+    ]));
+    let asset = |node_scale: &str, attributes: &str| {
+        let nodes = format!(
+            r#"[{{"mesh":0{node_scale},"extensions":{{"EXT_mesh_gpu_instancing":{{"attributes":{attributes}}}}}}}]"#
+        );
+        Asset::new(
+            Some(data_uri(&bin)),
+            bin.len(),
+            r#"[{"primitives":[{"attributes":{"POSITION":0}}]}]"#,
+        )
+        .view(0, 36)
+        .view(36, 60)
+        .accessor(0, FLOAT, "VEC3", 3)
+        .accessor(1, FLOAT, "VEC3", 5)
+        .with("extensionsUsed", r#"["EXT_mesh_gpu_instancing"]"#)
+        .with("nodes", &nodes)
+        .json()
+    };
+    let meshes = read_ok("instanced.gltf", asset("", r#"{"SCALE":1}"#));
+    assert_eq!(meshes[0].mirrored_instances, 2);
+    // A mirrored node flips every instance: the other three are mirrored now.
+    let flip = r#","scale":[1,1,-1]"#;
+    let meshes = read_ok("flipped.gltf", asset(flip, r#"{"SCALE":1}"#));
+    assert_eq!(meshes[0].mirrored_instances, 3);
+    // Without SCALE every instance has the node's orientation.
+    let meshes = read_ok("moved.gltf", asset(flip, r#"{"TRANSLATION":1}"#));
+    assert_eq!(meshes[0].mirrored_instances, 5);
+    // An unreadable SCALE is a note, and the instances count as unscaled.
+    let meshes = read_ok("broken.gltf", asset(flip, r#"{"TRANSLATION":1,"SCALE":7}"#));
+    assert_eq!(meshes[0].mirrored_instances, 5);
+    assert!(
+        meshes[0]
+            .notes
+            .iter()
+            .any(|n| n.contains("SCALE could not be read")),
+        "{:?}",
+        meshes[0].notes
+    );
+}

@@ -1,12 +1,14 @@
 //! Format readers. One module per format; each turns bytes into [`Mesh`]es or a [`ReadError`] whose
 //! message says what is wrong and what to do. No reader panics on bad input, none sizes an allocation
-//! from an unchecked header count, and the glTF reader never reads outside the scanned tree.
+//! from an unchecked header count, only regular files are read (a FIFO or device would block), and
+//! no file a model names is read outside the scanned tree ([`contain`]).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::mesh::Mesh;
 
+pub(crate) mod contain;
 mod gltf;
 pub(crate) mod obj;
 pub(crate) mod off;
@@ -106,13 +108,7 @@ impl From<std::io::Error> for ReadError {
 /// Reads every mesh of a file. A file with no triangles gives meshes with no triangles (or none at all),
 /// not an error.
 pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let size = std::fs::metadata(path)?.len();
-    if size > cx.limits.max_file_bytes {
-        return Err(ReadError::new(format!(
-            "file is {size} bytes, over the limit of {} bytes: raise limits.max_file_bytes in the config to scan it",
-            cx.limits.max_file_bytes
-        )));
-    }
+    check_file(path, &cx.limits)?;
     match format {
         Format::Obj => obj::read(path, cx),
         Format::Gltf | Format::Glb => gltf::read(path, cx),
@@ -120,4 +116,70 @@ pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, 
         Format::Ply => ply::read(path, cx),
         Format::Off => off::read(path, cx),
     }
+}
+
+/// The real path of `name`, a file a model of `format` names (an OBJ `mtllib`, a glTF buffer or
+/// image URI), if the reader's own rule lets it be read ([`contain`]: inside the tree before and
+/// after symbolic links, a regular file); `None` otherwise. Opens nothing. For the cache, which
+/// hashes what the readers read and must never look anywhere else.
+pub(crate) fn dependency(
+    format: Format,
+    name: &str,
+    location: &contain::Location,
+) -> Option<PathBuf> {
+    match format {
+        Format::Obj => obj::library(name, location).ok(),
+        Format::Gltf | Format::Glb => gltf::buffers::resolve(name, location).ok(),
+        Format::Stl | Format::Ply | Format::Off => None,
+    }
+}
+
+/// What a path that is not a regular file is (`a FIFO`, `a folder`, ...), or `None` for a regular
+/// file. Reading a FIFO or a device blocks (or never ends), so only regular files are read.
+pub fn not_regular(meta: &std::fs::Metadata) -> Option<&'static str> {
+    let kind = meta.file_type();
+    if kind.is_file() {
+        return None;
+    }
+    if kind.is_dir() {
+        return Some("a folder");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return Some("a FIFO (named pipe)");
+        }
+        if kind.is_socket() {
+            return Some("a socket");
+        }
+        if kind.is_char_device() || kind.is_block_device() {
+            return Some("a device");
+        }
+    }
+    Some("not a file")
+}
+
+/// The message for a path that is not a regular file.
+pub fn not_regular_message(kind: &str) -> String {
+    format!(
+        "not a regular file ({kind}): meshvet reads only regular files - name the mesh file itself"
+    )
+}
+
+/// Refuses, before anything is opened, a path that is not a regular file or is over the size
+/// limit. (Symbolic links are followed: a link to a regular file is read.)
+pub(crate) fn check_file(path: &Path, limits: &Limits) -> Result<u64, ReadError> {
+    let meta = std::fs::metadata(path)?;
+    if let Some(kind) = not_regular(&meta) {
+        return Err(ReadError::new(not_regular_message(kind)));
+    }
+    let size = meta.len();
+    if size > limits.max_file_bytes {
+        return Err(ReadError::new(format!(
+            "file is {size} bytes, over the limit of {} bytes: raise limits.max_file_bytes in the config to scan it",
+            limits.max_file_bytes
+        )));
+    }
+    Ok(size)
 }

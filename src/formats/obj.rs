@@ -6,36 +6,73 @@
 //! them (1-based, negative = relative, polygons split by [`super::polygon`]). One file is one mesh
 //! whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` are recognised and skipped for
 //! now; points and lines are counted into notes. `mtllib` files are read with tobj under
-//! `catch_unwind` (it panics on short colour lines); any MTL trouble is a note, never an error.
+//! `catch_unwind` (it panics on short colour lines), only when they are regular files inside the
+//! scanned tree (after symbolic links too, [`super::contain`]) and within `limits.max_file_bytes`;
+//! any MTL trouble is a note, never an error.
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
-use std::path::{Component, Path};
+use std::io::Read as _;
+use std::path::{Path, PathBuf};
 
+use super::contain::{self, Location, Unresolved};
 use super::polygon::{self, SplitTally};
-use super::{ReadContext, ReadError};
+use super::{Limits, ReadContext, ReadError};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
     let bytes = std::fs::read(path)?;
     let parsed = parse(&bytes, cx)?;
     let mut mesh = parsed.mesh;
-    let folder = path.parent().unwrap_or(Path::new(""));
+    if parsed.mtllibs.is_empty() {
+        return Ok(vec![mesh]);
+    }
+    let location = match Location::new(path, &cx.root) {
+        Ok(location) => location,
+        Err(e) => {
+            mesh.notes.push(format!(
+                "material libraries not read ({e}); materials do not affect the checks"
+            ));
+            return Ok(vec![mesh]);
+        }
+    };
     for (name, line) in &parsed.mtllibs {
-        // `mtllib a.mtl b.mtl` names several files; a single name with spaces is common too.
-        let several = name.contains(char::is_whitespace) && !folder.join(name).is_file();
-        let names: Vec<&str> = if several {
-            name.split_ascii_whitespace().collect()
-        } else {
-            vec![name.as_str()]
-        };
-        for name in names {
-            if let Some(note) = check_mtl(folder, name, *line) {
+        for name in library_names(name, &location) {
+            if let Some(note) = check_mtl(&location, name, *line, &cx.limits) {
                 mesh.notes.push(note);
             }
         }
     }
     Ok(vec![mesh])
+}
+
+/// The files an `mtllib` line names: `mtllib a.mtl b.mtl` names several, but a single name with
+/// spaces is common too (it wins when such a file exists).
+pub(crate) fn library_names<'a>(name: &'a str, location: &Location) -> Vec<&'a str> {
+    if name.contains(char::is_whitespace) && library(name, location).is_err() {
+        name.split_ascii_whitespace().collect()
+    } else {
+        vec![name]
+    }
+}
+
+/// Why a material library is not read.
+#[derive(Debug)]
+pub(crate) enum NotRead {
+    /// Absolute, with a drive or scheme, or climbing out of the scanned tree: never looked at.
+    Refused,
+    Unresolved(Unresolved),
+}
+
+/// The real path of material library `name`, by the rule every external file obeys
+/// ([`contain`]): relative, inside the scanned tree before and after symbolic links, and a regular
+/// file. Opens nothing. The cache hashes dependencies through this too.
+pub(crate) fn library(name: &str, location: &Location) -> Result<PathBuf, NotRead> {
+    if name.contains(':') {
+        return Err(NotRead::Refused);
+    }
+    let joined = contain::join(name, location).map_err(|_| NotRead::Refused)?;
+    contain::resolve(&joined, location).map_err(NotRead::Unresolved)
 }
 
 /// The geometry of a file and the `mtllib` names it asks for (with their lines).
@@ -92,6 +129,7 @@ pub(crate) struct State {
 
 /// Reads the file's one mesh with the [`Detail`] a writer needs.
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
+    super::check_file(path, &cx.limits)?;
     let bytes = std::fs::read(path)?;
     let parsed = parse_with(&bytes, cx, Some(Box::default()))?;
     let mut detail = parsed.detail.unwrap_or_default();
@@ -548,45 +586,55 @@ fn over_limit(what: &str, cx: &ReadContext) -> ReadError {
     ))
 }
 
-/// Reads the material library `name` (from `mtllib` on `line`) next to the OBJ. Returns a note
-/// when it is missing, unsafe to open or unreadable; `None` when it reads fine.
-fn check_mtl(folder: &Path, name: &str, line: u64) -> Option<String> {
-    let rel = Path::new(name);
-    let climbs = {
-        let mut depth = 0i64;
-        let mut out = false;
-        for c in rel.components() {
-            match c {
-                Component::ParentDir => depth -= 1,
-                Component::Normal(_) => depth += 1,
-                Component::CurDir => {}
-                Component::RootDir | Component::Prefix(_) => out = true,
-            }
-            out |= depth < 0;
-        }
-        out
+/// Reads the material library `name` (from `mtllib` on `line`). Returns a note when it is missing,
+/// refused (outside the scanned tree, through a link too; not a regular file; over
+/// `limits.max_file_bytes`) or unreadable; `None` when it reads fine.
+fn check_mtl(location: &Location, name: &str, line: u64, limits: &Limits) -> Option<String> {
+    let not_read = |why: String| {
+        Some(format!(
+            "material library `{name}` (line {line}) not read: {why}; materials do not affect the \
+             checks"
+        ))
     };
-    if rel.is_absolute() || climbs || name.contains(':') {
-        return Some(format!(
-            "material library `{name}` (line {line}) not read: its path is absolute or leaves the \
-             OBJ's folder; materials do not affect the checks"
-        ));
-    }
-    let bytes = match std::fs::read(folder.join(rel)) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+    let path = match library(name, location) {
+        Ok(path) => path,
+        Err(NotRead::Refused) => {
+            return not_read("its path is absolute or leaves the scanned folder".into())
+        }
+        Err(NotRead::Unresolved(Unresolved::Missing)) => {
             return Some(format!(
                 "material library `{name}` (line {line}) not found next to the OBJ; materials do \
                  not affect the checks, but ship the .mtl with the model"
             ))
         }
-        Err(e) => {
+        Err(NotRead::Unresolved(Unresolved::Outside)) => {
+            return not_read(
+                "it resolves, through a symbolic link, outside the scanned folder".into(),
+            )
+        }
+        Err(NotRead::Unresolved(Unresolved::NotAFile(_))) => {
+            return not_read("it is not a regular file".into())
+        }
+        Err(NotRead::Unresolved(Unresolved::Io(e))) => {
             return Some(format!(
                 "material library `{name}` (line {line}) could not be read: {e}"
             ))
         }
     };
-    check_mtl_bytes(name, &bytes)
+    // At most the size limit is read, even if the file grows meanwhile.
+    let limit = limits.max_file_bytes;
+    let mut bytes = Vec::new();
+    let read = std::fs::File::open(&path)
+        .and_then(|f| f.take(limit.saturating_add(1)).read_to_end(&mut bytes));
+    match read {
+        Ok(_) if bytes.len() as u64 > limit => not_read(format!(
+            "it is over the limit of {limit} bytes (limits.max_file_bytes)"
+        )),
+        Ok(_) => check_mtl_bytes(name, &bytes),
+        Err(e) => Some(format!(
+            "material library `{name}` (line {line}) could not be read: {e}"
+        )),
+    }
 }
 
 /// Parses MTL bytes with tobj; trouble (including a tobj panic) becomes a note.
@@ -724,11 +772,15 @@ mod tests {
         let n = check_mtl_bytes("a.mtl", b"newmtl m\nKd 1 0\n").unwrap();
         assert!(n.contains("line 2") && n.contains("Kd"), "{n}");
         assert_eq!(check_mtl_bytes("a.mtl", b"newmtl m\nKd 1 0 0\n"), None);
-        let n = check_mtl(Path::new("."), "../x.mtl", 3).unwrap();
-        assert!(n.contains("leaves the OBJ's folder"), "{n}");
-        let n = check_mtl(Path::new("."), "/etc/x.mtl", 3).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("m.obj"), "").unwrap();
+        let location = Location::new(&dir.path().join("m.obj"), dir.path()).unwrap();
+        let limits = Limits::default();
+        let n = check_mtl(&location, "../x.mtl", 3, &limits).unwrap();
+        assert!(n.contains("leaves the scanned folder"), "{n}");
+        let n = check_mtl(&location, "/etc/x.mtl", 3, &limits).unwrap();
         assert!(n.contains("absolute"), "{n}");
-        assert!(check_mtl(Path::new("."), "sub/../nope.mtl", 3)
+        assert!(check_mtl(&location, "sub/../nope.mtl", 3, &limits)
             .unwrap()
             .contains("not found"));
     }

@@ -136,6 +136,7 @@ pub(crate) struct Detail {
 
 /// Reads the file's one mesh with the [`Detail`] a writer needs.
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
+    super::check_file(path, &cx.limits)?;
     let bytes = std::fs::read(path)?;
     let mut detail = Detail::default();
     let mesh = parse_with(&bytes, cx, Some(&mut detail))?;

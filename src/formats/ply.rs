@@ -169,10 +169,15 @@ fn scalar_size(t: &ScalarType) -> u64 {
 }
 
 /// The fewest payload bytes one element can take: binary, the scalars and list counts (empty
-/// lists); ASCII, one character and one separator per property.
+/// lists); ASCII, one character and one separator per property. An element with no properties
+/// takes no bytes in either encoding: it is skipped without reading (see [`parse`]), so its count,
+/// which no byte of the file backs, never drives a loop.
 fn min_element_bytes(def: &ElementDef, encoding: Encoding) -> u64 {
+    if def.properties.is_empty() {
+        return 0;
+    }
     if encoding == Encoding::Ascii {
-        return (2 * def.properties.len() as u64).max(1);
+        return 2 * def.properties.len() as u64;
     }
     def.properties
         .values()
@@ -360,6 +365,17 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                             cx.limits.max_triangles
                         )));
                     }
+                }
+            }
+            // No properties: every entry is empty, in ASCII (blank lines are skipped anyway) as
+            // in binary. Skipped in O(1): a loop over a count of 2^64 empty records never ends.
+            _ if def.properties.is_empty() => {
+                if def.count > 0 {
+                    mesh.notes.push(format!(
+                        "PLY element `{}` declares {} entries but no properties: it holds no \
+                         data and was skipped",
+                        def.name, def.count
+                    ));
                 }
             }
             _ => {

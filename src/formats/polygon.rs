@@ -25,11 +25,15 @@ pub(crate) enum Split {
     /// Degenerate (zero area, non-finite coordinates) or self-intersecting: split (at least
     /// partly) as a fan because no proper triangulation exists.
     Fallback,
+    /// Concave but with more than [`MAX_EAR_CLIP_VERTICES`] vertices: split as a fan, unchecked.
+    Large,
 }
 
-/// Above this many vertices a concave polygon is split by a fan: ear clipping is quadratic or worse
-/// and such polygons (cap faces of scanned data) are rare.
-const MAX_EAR_CLIP_VERTICES: usize = 4096;
+/// Above this many vertices a concave polygon is split by a fan: ear clipping costs O(n^2) (about
+/// 4n^2 point tests on a hostile polygon, a few milliseconds at this size) and such polygons (cap
+/// faces of scanned data) are rare. The split must stay a pure function of the polygon: the
+/// repaired-copy writers split polygons again and expect the same triangles.
+pub(crate) const MAX_EAR_CLIP_VERTICES: usize = 1024;
 
 /// Appends the triangles of polygon `poly` (indices into `positions`) to `out`: `poly.len() - 2`
 /// triangles, or none when the polygon has fewer than 3 vertices.
@@ -53,7 +57,7 @@ pub(crate) fn triangulate(poly: &[u32], positions: &[[f64; 3]], out: &mut Vec<[u
     }
     if n > MAX_EAR_CLIP_VERTICES {
         fan(poly, out);
-        return Split::Fallback;
+        return Split::Large;
     }
     if ear_clip(poly, &points, out) {
         Split::EarClipped
@@ -158,35 +162,49 @@ fn is_convex(pts: &[Coord<f64>]) -> bool {
 /// Ear clipping on the projected, counter-clockwise polygon. Returns false when it had to clip a
 /// vertex that is not a proper ear (self-intersecting or degenerate input); it still emits exactly
 /// n - 2 triangles.
+///
+/// Worst case O(n^2) whatever the input: a hostile polygon (an outward spiral whose every corner
+/// hides the earlier ones) must not cost O(n^3). Each corner remembers that it is not an ear, and
+/// only the two neighbours of a clip forget it (in a simple polygon no other corner's status can
+/// change). So `is_ear` (O(n)) runs at most 4n times: once per clip, once per corner found not to be
+/// an ear, once again per neighbour of a clip. Walking the ring to the next candidate is O(n) per
+/// clip. A lap with no candidate (stale memory on a polygon that crosses or touches itself) forgets
+/// everything at most twice per polygon, then clips the most convex-looking corner, found in O(n).
 fn ear_clip(poly: &[u32], pts: &[Coord<f64>], out: &mut Vec<[u32; 3]>) -> bool {
     let n = pts.len();
     // Doubly linked ring of the remaining vertices.
     let mut next: Vec<usize> = (0..n).map(|i| (i + 1) % n).collect();
     let mut prev: Vec<usize> = (0..n).map(|i| (i + n - 1) % n).collect();
+    // Corners known not to be ears (as of the last time they were tested).
+    let mut not_ear = vec![false; n];
     let mut remaining = n;
     let mut cur = 0;
     let mut clean = true;
-    // Steps without clipping since the last clip; a full lap means there is no proper ear.
-    let mut misses = 0;
+    let mut forgets = 2;
     while remaining > 3 {
-        let p = prev[cur];
-        let q = next[cur];
-        if is_ear(p, cur, q, pts, &next) {
-            out.push([poly[p], poly[cur], poly[q]]);
-            next[p] = q;
-            prev[q] = p;
-            remaining -= 1;
-            misses = 0;
-            cur = q;
+        // The first corner from `cur` that is an ear; at most one lap.
+        let mut found = None;
+        let mut c = cur;
+        for _ in 0..remaining {
+            if !not_ear[c] {
+                if is_ear(prev[c], c, next[c], pts, &next) {
+                    found = Some(c);
+                    break;
+                }
+                not_ear[c] = true;
+            }
+            c = next[c];
+        }
+        if found.is_none() && forgets > 0 {
+            forgets -= 1;
+            not_ear.iter_mut().for_each(|e| *e = false);
             continue;
         }
-        misses += 1;
-        if misses > remaining {
-            // No proper ear: clip the most convex-looking corner (never loops: one vertex goes).
+        let clip = found.unwrap_or_else(|| {
+            // No proper ear: clip the most convex-looking corner (one vertex goes, so this ends).
             clean = false;
-            let mut best = cur;
+            let mut best = c;
             let mut best_turn = f64::NEG_INFINITY;
-            let mut c = cur;
             for _ in 0..remaining {
                 let t = orient2d(pts[prev[c]], pts[c], pts[next[c]]);
                 if t > best_turn {
@@ -195,15 +213,15 @@ fn ear_clip(poly: &[u32], pts: &[Coord<f64>], out: &mut Vec<[u32; 3]>) -> bool {
                 }
                 c = next[c];
             }
-            let (p, q) = (prev[best], next[best]);
-            out.push([poly[p], poly[best], poly[q]]);
-            next[p] = q;
-            prev[q] = p;
-            remaining -= 1;
-            misses = 0;
-            cur = q;
-            continue;
-        }
+            best
+        });
+        let (p, q) = (prev[clip], next[clip]);
+        out.push([poly[p], poly[clip], poly[q]]);
+        next[p] = q;
+        prev[q] = p;
+        remaining -= 1;
+        not_ear[p] = false;
+        not_ear[q] = false;
         cur = q;
     }
     let p = prev[cur];
@@ -216,6 +234,8 @@ fn ear_clip(poly: &[u32], pts: &[Coord<f64>], out: &mut Vec<[u32; 3]>) -> bool {
 /// vertex lies inside or on the triangle (vertices at the same position as a corner are ignored:
 /// polygons that touch themselves at a vertex are common and clipping there is fine).
 fn is_ear(a: usize, b: usize, c: usize, pts: &[Coord<f64>], next: &[usize]) -> bool {
+    #[cfg(test)]
+    tests::EAR_TESTS.with(|t| t.set(t.get() + 1));
     let (pa, pb, pc) = (pts[a], pts[b], pts[c]);
     if orient2d(pa, pb, pc) <= 0.0 {
         return false;
@@ -242,10 +262,12 @@ pub(crate) struct SplitTally {
     ear_clipped: u64,
     fallback: u64,
     too_few: u64,
+    large: u64,
     /// 1-based line (or face number, see `unit`) of the first polygon in each class.
     first_ear_clipped: u64,
     first_fallback: u64,
     first_too_few: u64,
+    first_large: u64,
 }
 
 impl SplitTally {
@@ -256,6 +278,7 @@ impl SplitTally {
             Split::EarClipped => (&mut self.ear_clipped, &mut self.first_ear_clipped),
             Split::Fallback => (&mut self.fallback, &mut self.first_fallback),
             Split::TooFew => (&mut self.too_few, &mut self.first_too_few),
+            Split::Large => (&mut self.large, &mut self.first_large),
         };
         if *count == 0 {
             *first = at;
@@ -278,6 +301,14 @@ impl SplitTally {
                 self.fallback, self.first_fallback
             ));
         }
+        if self.large > 0 {
+            notes.push(format!(
+                "{} concave polygon(s) with more than {MAX_EAR_CLIP_VERTICES} vertices split as a fan \
+                 (first at {unit} {}): some of their triangles may overlap or face the wrong way; \
+                 split them into smaller polygons in a modelling tool",
+                self.large, self.first_large
+            ));
+        }
         if self.too_few > 0 {
             notes.push(format!(
                 "{} face(s) with fewer than 3 vertices skipped (first at {unit} {})",
@@ -290,6 +321,11 @@ impl SplitTally {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    thread_local! {
+        /// Calls of `is_ear` on this thread, to check the cost of a split without timing it.
+        pub(super) static EAR_TESTS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    }
 
     fn split(poly: &[u32], positions: &[[f64; 3]]) -> (Vec<[u32; 3]>, Split) {
         let mut out = Vec::new();
@@ -453,6 +489,46 @@ mod tests {
         let (t, _) = split(&[0, 1, 2, 3, 4, 5], &p);
         assert_eq!(t.len(), 4);
         assert!(t.iter().all(|&t| area(t, &p) > 0.0), "{t:?}");
+    }
+
+    /// An outward spiral turning a little more than 120 degrees per corner: every corner's
+    /// triangle holds all the earlier (smaller) vertices, found only at the end of each test, and
+    /// no corner is a proper ear. Lap-by-lap ear clipping with a per-lap fallback took O(n^3)
+    /// (over 5 s for 2000 vertices in release, minutes in debug); now O(n^2).
+    fn spiral(n: usize) -> Vec<[f64; 3]> {
+        (0..n)
+            .map(|i| {
+                let (a, r) = (i as f64 * 2.1, 1.004f64.powi(i as i32));
+                [r * a.cos(), r * a.sin(), 0.0]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn hostile_spiral_is_split_in_quadratic_time() {
+        let n = MAX_EAR_CLIP_VERTICES;
+        let p = spiral(n);
+        let poly: Vec<u32> = (0..n as u32).collect();
+        EAR_TESTS.with(|t| t.set(0));
+        let (t, s) = split(&poly, &p);
+        assert_eq!(t.len(), n - 2);
+        assert_eq!(s, Split::Fallback);
+        // At most 4n ear tests of O(n) each, plus two rounds of forgetting (the old clipper made
+        // about 390n on this polygon).
+        let tests = EAR_TESTS.with(|t| t.get());
+        assert!(tests <= 6 * n as u64, "{tests} ear tests for {n} vertices");
+        // One more vertex: a fan, with its own note.
+        let p = spiral(n + 1);
+        let poly: Vec<u32> = (0..=n as u32).collect();
+        EAR_TESTS.with(|t| t.set(0));
+        let (t, s) = split(&poly, &p);
+        assert_eq!((t.len(), s), (n - 1, Split::Large));
+        assert_eq!(EAR_TESTS.with(|t| t.get()), 0);
+        let mut tally = SplitTally::default();
+        tally.add(s, 7);
+        let mut notes = Vec::new();
+        tally.notes("line", &mut notes);
+        assert!(notes[0].contains("more than 1024 vertices") && notes[0].contains("line 7"));
     }
 
     #[test]

@@ -3,8 +3,10 @@
 //!
 //! Detection: a file is binary exactly when its size is `84 + 50 n` for the triangle count `n` in its
 //! header, even when it starts with `solid` (many exporters write that into the binary header).
-//! Otherwise a file starting with `solid` is parsed as ASCII, and anything else is a truncated (or
-//! padded) binary file, reported with the declared and actual counts. Every facet contributes its
+//! Otherwise a file starting with `solid` (and holding text) is parsed as ASCII. Anything else is
+//! binary: a file longer than `84 + 50 n` is read as its `n` declared facets with a note about the
+//! bytes after them (exporters pad files), and a shorter one is truncated, reported with the
+//! declared and actual counts. Every facet contributes its
 //! own positions, exactly as stored (the analysis welds); ASCII loops with more than three vertices
 //! are split by [`super::polygon`].
 
@@ -53,15 +55,30 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
              not start with `solid` - re-export the file",
             bytes.len()
         ))),
+        // Longer than the declared facets: exporters pad binary files (to a block size, with a
+        // trailing newline, ...). The declared facets are all there; the rest is ignored, noted.
+        Some(n) if HEADER as u64 + FACET as u64 * n < bytes.len() as u64 => {
+            let end = HEADER + FACET * n as usize; // < bytes.len(), so it fits
+            let mut mesh = parse_binary(&bytes[..end], n, cx)?;
+            let extra = bytes.len() - end;
+            let more = extra / FACET;
+            let hint = if more > 0 {
+                format!(
+                    " (room for {more} more facet(s): if the model looks incomplete, the header's \
+                     triangle count is wrong - re-export the file)"
+                )
+            } else {
+                String::new()
+            };
+            mesh.notes.push(format!(
+                "{extra} byte(s) after the {n} triangles the binary header declares were ignored{hint}"
+            ));
+            Ok(mesh)
+        }
         Some(n) => {
             let held = (bytes.len() - HEADER) / FACET;
-            let what = if (held as u64) < n {
-                "truncated"
-            } else {
-                "damaged"
-            };
             Err(ReadError::new(format!(
-                "{what} binary STL: header declares {n} triangles ({} bytes), file holds {held} \
+                "truncated binary STL: header declares {n} triangles ({} bytes), file holds {held} \
                  ({} bytes) - re-export the file",
                 HEADER as u64 + FACET as u64 * n,
                 bytes.len()

@@ -85,7 +85,37 @@ pub fn views_of(accessor: &json::Accessor) -> impl Iterator<Item = usize> + '_ {
         .chain(sparse)
 }
 
+/// How many bytes of zeros (in the accessor's own encoding) an accessor without a buffer view may
+/// stand for, per byte of real input (the JSON and the loaded buffers). Such an accessor is all
+/// zeros plus its sparse values, which the input holds, so a legitimate one is small next to the
+/// rest of the file; `count: 100000000` in a 300-byte file is not.
+pub const UNBACKED_PER_INPUT_BYTE: u64 = 8;
+
 impl Data<'_> {
+    /// The real bytes behind this asset: its JSON and every buffer loaded.
+    pub fn input_bytes(&self) -> u64 {
+        let buffers: u64 = self.buffers.iter().flatten().map(|b| b.len() as u64).sum();
+        self.root.json_bytes.saturating_add(buffers)
+    }
+
+    /// Refuses an accessor without a buffer view that would expand to more than the limits, or
+    /// to more than the input can describe (see [`UNBACKED_PER_INPUT_BYTE`]).
+    pub fn check_unbacked(&self, count: u64, size: usize, what: &str) -> Result<(), ReadError> {
+        let bytes = count.saturating_mul(size as u64);
+        if count > self.limits.max_triangles || bytes > self.limits.max_file_bytes {
+            return Err(err(format!(
+                "{what}: accessor without a buffer view declares {count} elements, over the limits: raise limits.max_triangles in the config to read it"
+            )));
+        }
+        let input = self.input_bytes();
+        if bytes > input.saturating_mul(UNBACKED_PER_INPUT_BYTE) {
+            return Err(err(format!(
+                "{what}: accessor without a buffer view declares {count} elements ({bytes} bytes of zeros), far more than this file's {input} bytes of JSON and buffers can describe: its data is missing (compressed by an extension meshvet cannot decode?) - fix or re-export the file"
+            )));
+        }
+        Ok(())
+    }
+
     /// The bytes of buffer view `index`, and its byteStride.
     fn view(&self, index: usize, what: &str) -> Result<(&[u8], Option<usize>), ReadError> {
         let root = self.root;
@@ -167,7 +197,7 @@ impl Data<'_> {
 
     /// Appends the elements of `accessor` to `out`, decoded by `decode`, sparse values applied.
     /// `size` is the element size in bytes. The count is checked against the data (or, for an
-    /// accessor with no buffer view, against the limits) before `out` grows.
+    /// accessor with no buffer view, against the limits and the input's size) before `out` grows.
     fn append<T: Copy + Default>(
         &self,
         accessor: &json::Accessor,
@@ -191,13 +221,9 @@ impl Data<'_> {
                 out.extend((0..elements.count).map(|i| decode(elements.element(i))));
             }
             None => {
-                // No data: all elements are zero (sparse values follow). Bound the allocation.
-                let bytes = (count as u64).saturating_mul(size as u64);
-                if count as u64 > self.limits.max_triangles || bytes > self.limits.max_file_bytes {
-                    return Err(err(format!(
-                        "{what}: accessor without a buffer view declares {count} elements, over the limits: raise limits.max_triangles in the config to read it"
-                    )));
-                }
+                // No data: all elements are zero (sparse values follow). Bound the allocation by
+                // the limits and by the real size of the input.
+                self.check_unbacked(count as u64, size, what)?;
                 out.resize(start + count, T::default());
             }
         }
@@ -273,12 +299,7 @@ impl Data<'_> {
                 out
             }
             None => {
-                let bytes = (count as u64).saturating_mul(size as u64);
-                if count as u64 > self.limits.max_triangles || bytes > self.limits.max_file_bytes {
-                    return Err(err(format!(
-                        "{what}: accessor without a buffer view declares {count} elements, over the limits"
-                    )));
-                }
+                self.check_unbacked(count as u64, size, what)?;
                 vec![0; count * size]
             }
         };

@@ -4,40 +4,17 @@
 //! opened: the path is checked lexically first, then again after symbolic links are resolved.
 
 use std::borrow::Cow;
-use std::path::{Component, Path, PathBuf};
+use std::path::PathBuf;
 
 use base64::engine::general_purpose::{GeneralPurpose, GeneralPurposeConfig};
 use base64::engine::DecodePaddingMode;
 use base64::Engine as _;
 use gltf::json;
 
+use super::super::contain::{self, Unresolved};
 use super::super::{Limits, ReadError};
 
-/// Where relative buffer URIs are looked up and how far they may go.
-pub struct Location {
-    /// The canonical folder of the `.gltf` file.
-    pub folder: PathBuf,
-    /// The canonical scanned tree: every external buffer must resolve inside it.
-    pub tree: PathBuf,
-}
-
-impl Location {
-    /// The folder of `path` and the tree `root` (a file root means its own folder), both canonical.
-    pub fn new(path: &Path, root: &Path) -> Result<Location, ReadError> {
-        let canonical = |p: &Path| {
-            p.canonicalize().map_err(|e| {
-                ReadError::new(format!("cannot resolve the folder {}: {e}", p.display()))
-            })
-        };
-        let file = canonical(path)?;
-        let folder = file.parent().map(Path::to_path_buf).unwrap_or(file);
-        let mut tree = canonical(root)?;
-        if tree.is_file() {
-            tree.pop();
-        }
-        Ok(Location { folder, tree })
-    }
-}
+pub use super::super::contain::Location;
 
 /// Loads buffer `index`: the bytes it declares (`byteLength`), never fewer.
 pub fn load<'a>(
@@ -170,7 +147,8 @@ fn percent_decode(uri: &str) -> Result<String, ReadError> {
 }
 
 /// The path a relative URI names, checked lexically (no disk access): no scheme, not absolute, not
-/// climbing out of the tree. Use [`resolve`] before reading it.
+/// climbing out of the tree ([`contain::join`], the rule every reader and the cache share). Use
+/// [`resolve`] before reading it.
 pub fn check(uri: &str, location: &Location) -> Result<PathBuf, ReadError> {
     let refuse = |why: &str| {
         ReadError::new(format!(
@@ -181,63 +159,27 @@ pub fn check(uri: &str, location: &Location) -> Result<PathBuf, ReadError> {
         return Err(refuse(&format!("it uses the {scheme}: scheme")));
     }
     let decoded = percent_decode(uri)?;
-    if decoded.contains('\0') {
-        return Err(refuse("it contains a NUL byte"));
-    }
-    let relative = Path::new(&decoded);
-    let drive = decoded.len() >= 2 && decoded.as_bytes()[1] == b':';
-    if decoded.starts_with('/') || decoded.starts_with('\\') || drive || relative.is_absolute() {
-        return Err(refuse("it is an absolute path"));
-    }
-    // `..` is applied to the canonical folder without touching the disk.
-    let mut joined = location.folder.clone();
-    for component in relative.components() {
-        match component {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                if !joined.pop() {
-                    return Err(refuse("it climbs out of the scanned folder"));
-                }
-            }
-            Component::Normal(part) => joined.push(part),
-            Component::RootDir | Component::Prefix(_) => {
-                return Err(refuse("it is an absolute path"))
-            }
-        }
-    }
-    if !joined.starts_with(&location.tree) {
-        return Err(refuse("it climbs out of the scanned folder"));
-    }
-    Ok(joined)
+    contain::join(&decoded, location).map_err(|why| refuse(why.describe()))
 }
 
 /// The file a relative URI names, if it is inside the tree: [`check`], then the same test on the
-/// real path once symbolic links are resolved. Never opens anything.
+/// real path once symbolic links are resolved, and it must be a regular file. Never opens anything.
 pub fn resolve(uri: &str, location: &Location) -> Result<PathBuf, ReadError> {
     let joined = check(uri, location)?;
-    // Then symbolic links: the real file must be inside the tree too.
-    let real = joined.canonicalize().map_err(|e| {
-        if e.kind() == std::io::ErrorKind::NotFound {
-            ReadError::new(format!(
-                "buffer file \"{uri}\" not found (looked for {}): copy the .bin next to the .gltf or fix the uri",
-                joined.display()
-            ))
-        } else {
-            ReadError::new(format!("buffer URI \"{uri}\": {e}"))
-        }
-    })?;
-    if !real.starts_with(&location.tree) {
-        return Err(ReadError::new(format!(
+    contain::resolve(&joined, location).map_err(|why| match why {
+        Unresolved::Missing => ReadError::new(format!(
+            "buffer file \"{uri}\" not found (looked for {}): copy the .bin next to the .gltf or fix the uri",
+            joined.display()
+        )),
+        Unresolved::Io(e) => ReadError::new(format!("buffer URI \"{uri}\": {e}")),
+        Unresolved::Outside => ReadError::new(format!(
             "buffer URI \"{uri}\" refused: it resolves, through a symbolic link, outside the scanned folder"
-        )));
-    }
-    if !real.is_file() {
-        return Err(ReadError::new(format!(
-            "buffer URI \"{uri}\" names {}, which is not a file",
+        )),
+        Unresolved::NotAFile(real) => ReadError::new(format!(
+            "buffer URI \"{uri}\" names {}, which is not a regular file",
             real.display()
-        )));
-    }
-    Ok(real)
+        )),
+    })
 }
 
 #[cfg(test)]

@@ -1,6 +1,10 @@
 //! The outside of a glTF asset: the GLB container (header, JSON chunk, BIN chunk), the version
-//! check that turns glTF 1.0 away with a clear message, and the `extensionsRequired` gate. Nothing
+//! check that turns glTF 1.0 away with a clear message, the `extensionsRequired` gate, and the
+//! extensions on primitives, buffer views and nodes that change the geometry (compression that
+//! may be used without being required, GPU instancing). Nothing
 //! here trusts a length it has not checked against the bytes it has.
+
+use std::collections::{BTreeMap, BTreeSet};
 
 use gltf::json;
 use serde::Deserialize;
@@ -165,6 +169,119 @@ pub struct Model {
     pub nodes: Vec<json::Node>,
     #[serde(default)]
     pub scenes: Vec<Scene>,
+    /// Size of the JSON the model was read from: with the loaded buffers, the real data an
+    /// accessor without a buffer view may be expanded against (see `accessor`).
+    #[serde(skip)]
+    pub json_bytes: u64,
+    /// The extensions geometry depends on, which the crate's JSON types drop.
+    #[serde(skip)]
+    pub extensions: Extensions,
+}
+
+/// The extensions on primitives, buffer views, buffers and nodes that change what geometry a file
+/// holds: compressed data meshvet cannot decode, and per-instance transforms.
+#[derive(Debug, Default)]
+pub struct Extensions {
+    /// `(mesh, primitive)` pairs with `KHR_draco_mesh_compression`.
+    pub draco: BTreeSet<(usize, usize)>,
+    /// Buffer views with `EXT_meshopt_compression` or `KHR_meshopt_compression`, and which.
+    pub meshopt_views: BTreeMap<usize, &'static str>,
+    /// Buffers marked as a meshopt `fallback`: placeholders with no real data.
+    pub fallback_buffers: BTreeSet<usize>,
+    /// Nodes with `EXT_mesh_gpu_instancing`.
+    pub instancing: BTreeMap<usize, Instancing>,
+}
+
+/// The attributes of one node's `EXT_mesh_gpu_instancing`, as accessor indices.
+#[derive(Debug, Default, Clone)]
+pub struct Instancing {
+    /// Every attribute accessor (all have the instance count).
+    pub attributes: Vec<u64>,
+    pub scale: Option<u64>,
+}
+
+const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+
+/// Just the `extensions` objects of the members [`Extensions`] reads.
+#[derive(Deserialize, Default)]
+#[serde(default)]
+struct RawExtensions {
+    meshes: Vec<RawMesh>,
+    #[serde(rename = "bufferViews")]
+    buffer_views: Vec<RawItem>,
+    buffers: Vec<RawItem>,
+    nodes: Vec<RawItem>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(default)]
+struct RawMesh {
+    primitives: Vec<RawItem>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(default)]
+struct RawItem {
+    extensions: Option<json::Value>,
+}
+
+impl RawItem {
+    fn get(&self, name: &str) -> Option<&json::Value> {
+        self.extensions.as_ref()?.get(name)
+    }
+}
+
+impl Extensions {
+    /// Reads the extensions leniently: a shape this does not expect means "no extension" (the
+    /// model itself, deserialized already, is what refuses malformed JSON).
+    fn of(json: &[u8]) -> Extensions {
+        let raw: RawExtensions = json::deserialize::from_slice(json).unwrap_or_default();
+        let mut out = Extensions::default();
+        for (m, mesh) in raw.meshes.iter().enumerate() {
+            for (p, primitive) in mesh.primitives.iter().enumerate() {
+                if primitive.get("KHR_draco_mesh_compression").is_some() {
+                    out.draco.insert((m, p));
+                }
+            }
+        }
+        for (v, view) in raw.buffer_views.iter().enumerate() {
+            if let Some(name) = MESHOPT.iter().find(|e| view.get(e).is_some()) {
+                out.meshopt_views.insert(v, name);
+            }
+        }
+        for (b, buffer) in raw.buffers.iter().enumerate() {
+            let fallback = MESHOPT.iter().any(|e| {
+                buffer
+                    .get(e)
+                    .and_then(|x| x.get("fallback"))
+                    .and_then(json::Value::as_bool)
+                    == Some(true)
+            });
+            if fallback {
+                out.fallback_buffers.insert(b);
+            }
+        }
+        for (n, node) in raw.nodes.iter().enumerate() {
+            let Some(attributes) = node
+                .get("EXT_mesh_gpu_instancing")
+                .and_then(|x| x.get("attributes"))
+                .and_then(json::Value::as_object)
+            else {
+                continue;
+            };
+            let mut instancing = Instancing::default();
+            for (name, accessor) in attributes {
+                if let Some(a) = accessor.as_u64() {
+                    instancing.attributes.push(a);
+                    if name == "SCALE" {
+                        instancing.scale = Some(a);
+                    }
+                }
+            }
+            out.instancing.insert(n, instancing);
+        }
+        out
+    }
 }
 
 #[derive(Deserialize)]
@@ -217,7 +334,10 @@ pub fn parse_model(json: &[u8]) -> Result<Model, ReadError> {
             "requires extension {ext}, {advice}"
         )));
     }
-    json::deserialize::from_slice(json).map_err(invalid)
+    let mut model: Model = json::deserialize::from_slice(json).map_err(invalid)?;
+    model.json_bytes = json.len() as u64;
+    model.extensions = Extensions::of(json);
+    Ok(model)
 }
 
 fn v1() -> ReadError {

@@ -7,17 +7,25 @@
 //! it cannot decode), never builds a `gltf::Document`, resolves buffers itself (`buffers`), and
 //! reads accessors from bytes it has checked (`accessor`). Every index, type, stride and byte range is checked before use; a panic that
 //! slips through anyway is caught and reported as a read error for this file.
+//!
+//! Nothing a small file declares can make it expand without bound: `limits.max_triangles` holds for
+//! the vertices and triangles of all meshes of a file together (meshes and primitives may reuse one
+//! accessor), and an accessor without a buffer view (all zeros but its sparse values) may stand for
+//! at most `accessor::UNBACKED_PER_INPUT_BYTE` bytes per byte of JSON and loaded buffers, per accessor
+//! and per file. Compression meshvet cannot decode is refused by name even when it is only used,
+//! not required (`check_compression`).
 
 pub(super) mod accessor;
 pub(super) mod buffers;
 pub(super) mod container;
 mod nodes;
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
 use gltf::json;
+use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 
@@ -51,7 +59,8 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
     if root.meshes.is_empty() {
         return Ok(Vec::new());
     }
-    let mirrored = nodes::mirrored_instances(&root)?;
+    let mut notes = vec![Vec::new(); root.meshes.len()];
+    check_compression(&root, container.is_glb, &mut notes)?;
 
     // Load only the buffers the meshes read: a missing texture-only .bin is not our concern.
     let mut needed = BTreeSet::new();
@@ -75,6 +84,19 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
             }
         }
     }
+    // GPU instancing SCALE data only refines the mirrored count: its buffers are loaded if they
+    // can be, and a failure is a note.
+    let mut optional = BTreeSet::new();
+    for instancing in root.extensions.instancing.values() {
+        let scale = instancing
+            .scale
+            .and_then(|a| root.accessors.get(a as usize));
+        for view in scale.into_iter().flat_map(accessor::views_of) {
+            if let Some(view) = root.buffer_views.get(view) {
+                optional.insert(view.buffer.value());
+            }
+        }
+    }
     let mut loaded = Vec::with_capacity(root.buffers.len());
     let location = if container.is_glb && root.buffers.iter().all(|b| b.uri.is_none()) {
         None // a self-contained GLB needs no file system lookups
@@ -82,16 +104,18 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
         Some(buffers::Location::new(path, &cx.root)?)
     };
     for (index, buffer) in root.buffers.iter().enumerate() {
-        if needed.contains(&index) {
-            let bytes = buffers::load(
+        let load = || {
+            buffers::load(
                 index,
                 buffer,
                 container.bin,
                 container.is_glb,
                 location.as_ref(),
                 &cx.limits,
-            )?;
-            loaded.push(Some(bytes));
+            )
+        };
+        if needed.contains(&index) {
+            loaded.push(Some(load()?));
         } else {
             // A URI no mesh reads is still refused if it points outside the tree (checked
             // lexically, nothing is touched); a missing file there is not our concern.
@@ -103,7 +127,7 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
                     buffers::check(uri, location)?;
                 }
             }
-            loaded.push(None);
+            loaded.push(optional.contains(&index).then(load).and_then(Result::ok));
         }
     }
     let data = Data {
@@ -111,17 +135,188 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
         buffers: loaded,
         limits: &cx.limits,
     };
+    let instances = instance_signs(&data, &mut notes);
+    let mirrored = nodes::mirrored_instances(&root, &instances)?;
 
     let mut scratch = Vec::new();
+    let mut totals = Totals::default();
     root.meshes
         .iter()
+        .zip(notes)
         .enumerate()
-        .map(|(m, mesh)| {
-            let mut out = read_mesh(&data, mesh, m, &mut scratch)?;
+        .map(|(m, (mesh, notes))| {
+            let mut out = read_mesh(&data, mesh, m, &mut scratch, &mut totals)?;
             out.mirrored_instances = mirrored[m];
+            out.notes.splice(0..0, notes);
             Ok(out)
         })
         .collect()
+}
+
+/// Refuses a triangle primitive whose data is compressed by an extension meshvet cannot decode
+/// (`KHR_draco_mesh_compression` on the primitive, `EXT_meshopt_compression` or
+/// `KHR_meshopt_compression` on a buffer view it reads), even when the file does not list the
+/// extension as required: its accessors would read as zeros or as a placeholder buffer. When the
+/// uncompressed fallback the extensions allow is there, it is read, with a note.
+fn check_compression(
+    root: &container::Model,
+    is_glb: bool,
+    notes: &mut [Vec<String>],
+) -> Result<(), ReadError> {
+    let extensions = &root.extensions;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let Some((position, indices)) = triangle_accessors(primitive) else {
+                continue;
+            };
+            let what = primitive_name(mesh, m, p);
+            // Accessors that do not exist are reported when the buffers are chosen.
+            let accessors: Vec<&json::Accessor> = std::iter::once(position)
+                .chain(indices)
+                .filter_map(|a| root.accessors.get(a))
+                .collect();
+            if extensions.draco.contains(&(m, p)) {
+                if accessors.iter().any(|a| a.buffer_view.is_none()) {
+                    return Err(ReadError::new(format!(
+                        "{what} is compressed with KHR_draco_mesh_compression, which meshvet cannot decode: export without Draco compression"
+                    )));
+                }
+                notes[m].push(format!(
+                    "primitive {p} is also compressed with KHR_draco_mesh_compression; its uncompressed fallback data was read"
+                ));
+            }
+            let views: BTreeSet<usize> = accessors
+                .iter()
+                .flat_map(|a| accessor::views_of(a))
+                .collect();
+            for view in views {
+                let Some(name) = extensions.meshopt_views.get(&view) else {
+                    continue;
+                };
+                let placeholder = root.buffer_views.get(view).is_none_or(|v| {
+                    let b = v.buffer.value();
+                    extensions.fallback_buffers.contains(&b)
+                        || root
+                            .buffers
+                            .get(b)
+                            .is_some_and(|buffer| buffer.uri.is_none() && !(is_glb && b == 0))
+                });
+                if placeholder {
+                    return Err(ReadError::new(format!(
+                        "{what} reads buffer view {view}, compressed with {name}, which meshvet cannot decode: export without meshopt compression"
+                    )));
+                }
+                notes[m].push(format!(
+                    "primitive {p} reads buffer view {view}, also compressed with {name}; its uncompressed fallback data was read"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// For each node with `EXT_mesh_gpu_instancing`, its instances by the sign of their SCALE. A
+/// SCALE that cannot be read leaves the node's instances unscaled, with a note on its mesh.
+fn instance_signs(
+    data: &Data<'_>,
+    notes: &mut [Vec<String>],
+) -> BTreeMap<usize, nodes::InstanceSigns> {
+    let root = data.root;
+    let mut out = BTreeMap::new();
+    for (&n, instancing) in &root.extensions.instancing {
+        let count = instancing
+            .attributes
+            .iter()
+            .filter_map(|&a| root.accessors.get(a as usize))
+            .map(|a| a.count.0)
+            .max()
+            .unwrap_or(0);
+        let unscaled = nodes::InstanceSigns {
+            positive: u32::try_from(count).unwrap_or(u32::MAX),
+            negative: 0,
+        };
+        let signs = match instancing.scale {
+            None => unscaled,
+            Some(a) => scale_signs(data, a, n).unwrap_or_else(|e| {
+                let mesh = root.nodes.get(n).and_then(|node| node.mesh);
+                if let Some(list) = mesh.and_then(|mesh| notes.get_mut(mesh.value())) {
+                    list.push(format!(
+                        "node {n}: the EXT_mesh_gpu_instancing SCALE could not be read ({e}); its instances were counted as not mirrored by their scale"
+                    ));
+                }
+                unscaled
+            }),
+        };
+        out.insert(n, signs);
+    }
+    out
+}
+
+/// The signs of the SCALE products of one instancing node (FLOAT, or normalized BYTE or SHORT,
+/// VEC3, as the extension allows).
+fn scale_signs(data: &Data<'_>, index: u64, node: usize) -> Result<nodes::InstanceSigns, String> {
+    let what = format!("node {node} instancing SCALE");
+    let accessor = usize::try_from(index)
+        .ok()
+        .and_then(|i| data.root.accessors.get(i))
+        .ok_or_else(|| format!("accessor {index} does not exist"))?;
+    let component = match (accessor.type_, accessor.component_type) {
+        (Checked::Valid(Type::Vec3), Checked::Valid(GenericComponentType(c)))
+            if matches!(
+                c,
+                ComponentType::F32 | ComponentType::I8 | ComponentType::I16
+            ) =>
+        {
+            c
+        }
+        _ => return Err("it is not a FLOAT, BYTE or SHORT VEC3 accessor".into()),
+    };
+    for view in accessor::views_of(accessor) {
+        let buffer = data.root.buffer_views.get(view).map(|v| v.buffer.value());
+        if !buffer.is_some_and(|b| matches!(data.buffers.get(b), Some(Some(_)))) {
+            return Err(format!(
+                "the buffer of buffer view {view} could not be loaded"
+            ));
+        }
+    }
+    let size = component.size();
+    let raw = data
+        .raw(accessor, 3 * size, &what)
+        .map_err(|e| e.to_string())?;
+    let sign = |b: &[u8]| -> i8 {
+        let v = match component {
+            ComponentType::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            ComponentType::I16 => f64::from(i16::from_le_bytes([b[0], b[1]])),
+            _ => f64::from(b[0] as i8),
+        };
+        if v > 0.0 {
+            1
+        } else if v < 0.0 {
+            -1
+        } else {
+            0 // zero or NaN: flat or broken, not mirrored
+        }
+    };
+    let mut signs = nodes::InstanceSigns::default();
+    for instance in raw.chunks_exact(3 * size) {
+        let product: i8 = instance.chunks_exact(size).map(sign).product();
+        match product {
+            1 => signs.positive = signs.positive.saturating_add(1),
+            -1 => signs.negative = signs.negative.saturating_add(1),
+            _ => {}
+        }
+    }
+    Ok(signs)
+}
+
+/// What the meshes of one file have decoded so far: the limits hold for the file as a whole, so
+/// many meshes or primitives reusing one accessor cannot multiply a small file into N x the limit.
+#[derive(Default)]
+struct Totals {
+    vertices: u64,
+    triangles: u64,
+    /// Bytes of zeros expanded from accessors without a buffer view.
+    unbacked: u64,
 }
 
 /// The POSITION accessor and indices accessor of a triangle primitive; `None` for other modes
@@ -161,6 +356,7 @@ fn read_mesh(
     mesh: &json::Mesh,
     m: usize,
     indices: &mut Vec<u32>,
+    totals: &mut Totals,
 ) -> Result<Mesh, ReadError> {
     let limits = data.limits;
     let mut out = Mesh {
@@ -206,8 +402,19 @@ fn read_mesh(
                 limits.max_triangles,
             ));
         }
+        let file_vertices = totals.vertices.saturating_add(position.count.0);
+        if file_vertices > limits.max_triangles {
+            return Err(over_file_limit(
+                &what,
+                "vertices",
+                file_vertices,
+                limits.max_triangles,
+            ));
+        }
+        unbacked(data, position, 12, totals, &what)?;
         let base = out.positions.len();
         data.append_positions(position, &mut out.positions, &what)?;
+        totals.vertices = file_vertices;
         let vertices = out.positions.len() - base;
         if u32::try_from(out.positions.len()).is_err()
             || out.positions.len() as u64 > limits.max_triangles
@@ -223,6 +430,11 @@ fn read_mesh(
         let corners = match primitive.indices {
             Some(i) => {
                 let accessor = accessor::get(data.root, i.value(), &what)?;
+                let size = match accessor.component_type {
+                    Checked::Valid(GenericComponentType(c)) => c.size(),
+                    Checked::Invalid => 4,
+                };
+                unbacked(data, accessor, size, totals, &what)?;
                 data.read_indices(accessor, indices, &what)?;
                 if let Some((k, &bad)) = indices
                     .iter()
@@ -251,6 +463,16 @@ fn read_mesh(
                 limits.max_triangles,
             ));
         }
+        let file_triangles = totals.triangles.saturating_add(triangles as u64);
+        if file_triangles > limits.max_triangles {
+            return Err(over_file_limit(
+                &what,
+                "triangles",
+                file_triangles,
+                limits.max_triangles,
+            ));
+        }
+        totals.triangles = file_triangles;
         if mode == Mode::Triangles && n % 3 != 0 {
             out.notes.push(format!(
                 "primitive {p}: {} vertex references after the last whole triangle were ignored",
@@ -293,6 +515,38 @@ fn read_mesh(
         ));
     }
     Ok(out)
+}
+
+fn over_file_limit(what: &str, unit: &str, count: u64, limit: u64) -> ReadError {
+    ReadError::new(format!(
+        "{what} brings the meshes of this file to {count} {unit} in all, over the limit of {limit} per file (a mesh or primitive that reuses an accessor counts it again): raise limits.max_triangles in the config to read it"
+    ))
+}
+
+/// Adds an accessor without a buffer view to the file's expanded zeros, which together may not
+/// exceed what the input can describe (the per-accessor rule of [`Data::check_unbacked`], for
+/// the file as a whole).
+fn unbacked(
+    data: &Data<'_>,
+    accessor: &json::Accessor,
+    size: usize,
+    totals: &mut Totals,
+    what: &str,
+) -> Result<(), ReadError> {
+    if accessor.buffer_view.is_some() {
+        return Ok(());
+    }
+    data.check_unbacked(accessor.count.0, size, what)?;
+    let bytes = accessor.count.0.saturating_mul(size as u64);
+    totals.unbacked = totals.unbacked.saturating_add(bytes);
+    let input = data.input_bytes();
+    if totals.unbacked > input.saturating_mul(accessor::UNBACKED_PER_INPUT_BYTE) {
+        return Err(ReadError::new(format!(
+            "{what}: the accessors without a buffer view of this file expand to {} bytes of zeros, far more than its {input} bytes of JSON and buffers can describe: their data is missing (compressed by an extension meshvet cannot decode?) - fix or re-export the file",
+            totals.unbacked
+        )));
+    }
+    Ok(())
 }
 
 fn over_limit(what: &str, unit: &str, count: u64, limit: u64) -> ReadError {

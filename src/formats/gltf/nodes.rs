@@ -1,7 +1,10 @@
 //! The node hierarchy, walked only to count mirrored instances: nodes whose world transform
 //! (parent x child, from the scene roots down) has a negative determinant, which turns the mesh's
-//! winding inside out where it is placed. The walk is iterative and visits each node once, so a
+//! winding inside out where it is placed, and `EXT_mesh_gpu_instancing` instances whose SCALE
+//! mirrors them (or un-mirrors a mirrored node). The walk is iterative and visits each node once, so a
 //! cyclic or shared hierarchy (invalid, but found in the wild) neither loops nor explodes.
+
+use std::collections::BTreeMap;
 
 use glam::{DMat4, DQuat, DVec3};
 use gltf::json;
@@ -10,9 +13,23 @@ use super::container::Model;
 
 use super::super::ReadError;
 
-/// For each mesh, how many nodes instance it with a mirroring transform. Roots are the nodes of
-/// every scene; a file with no scenes uses every node that is nobody's child.
-pub fn mirrored_instances(root: &Model) -> Result<Vec<u32>, ReadError> {
+/// The instances an `EXT_mesh_gpu_instancing` node draws, by the sign of the product of their
+/// SCALE components (a rotation never mirrors, a translation has no say). Zero-scale instances are
+/// in neither count: they are flat, not mirrored.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct InstanceSigns {
+    pub positive: u32,
+    pub negative: u32,
+}
+
+/// For each mesh, how many instances place it with a mirroring transform: nodes whose world
+/// transform has a negative determinant and, for a node with GPU instancing (`instances`), each
+/// instance whose transform (world x instance) does. Roots are the nodes of every scene; a file
+/// with no scenes uses every node that is nobody's child.
+pub fn mirrored_instances(
+    root: &Model,
+    instances: &BTreeMap<usize, InstanceSigns>,
+) -> Result<Vec<u32>, ReadError> {
     let nodes = &root.nodes;
     let check = |index: usize, who: &dyn Fn() -> String| {
         if index < nodes.len() {
@@ -60,9 +77,15 @@ pub fn mirrored_instances(root: &Model) -> Result<Vec<u32>, ReadError> {
                     root.meshes.len()
                 ))
             })?;
-            if world.determinant() < 0.0 {
-                *count += 1;
-            }
+            let det = world.determinant();
+            let mirrored = match instances.get(&n) {
+                // The node draws only its instances, each at world x instance.
+                Some(signs) if det > 0.0 => signs.negative,
+                Some(signs) if det < 0.0 => signs.positive,
+                Some(_) => 0,
+                None => u32::from(det < 0.0),
+            };
+            *count = count.saturating_add(mirrored);
         }
         for child in node.children.iter().flatten() {
             let c = check(child.value(), &|| format!("node {n}"))?;
