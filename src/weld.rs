@@ -83,33 +83,27 @@ fn hash(key: [u64; 3]) -> u64 {
 }
 
 fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
-    let cell = |p: &[f64; 3]| p.map(|x| (x / tolerance).floor() as i64);
+    let grid_cell = Cell::new(positions, tolerance);
     let mut grid: FxHashMap<[i64; 3], Vec<u32>> = FxHashMap::default();
     let mut out = Welded {
         map: Vec::with_capacity(positions.len()),
         ..Welded::default()
     };
-    let tol2 = tolerance * tolerance;
     for p in positions {
         if !is_valid(p) {
             out.invalid += 1;
             out.map.push(INVALID);
             continue;
         }
-        let k = cell(p);
+        let k = grid_cell.of(p);
         let mut found = INVALID;
         for dx in -1..=1i64 {
             for dy in -1..=1i64 {
                 for dz in -1..=1i64 {
-                    let key = [
-                        k[0].saturating_add(dx),
-                        k[1].saturating_add(dy),
-                        k[2].saturating_add(dz),
-                    ];
+                    let key = [k[0] + dx, k[1] + dy, k[2] + dz];
                     for &id in grid.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
                         let q = &out.positions[id as usize];
-                        let d2 = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>();
-                        if d2 < tol2 && id < found {
+                        if id < found && closer_than(p, q, tolerance) {
                             found = id;
                         }
                     }
@@ -118,12 +112,52 @@ fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
         }
         if found == INVALID {
             found = out.positions.len() as u32;
-            out.positions.push(*p);
+            // Adding 0.0 turns -0.0 into 0.0, as the exact weld does.
+            out.positions.push(p.map(|x| x + 0.0));
             grid.entry(k).or_default().push(found);
         }
         out.map.push(found);
     }
     out
+}
+
+/// Whether `p` and `q` are closer than `tolerance`, measured in units of the tolerance so that neither
+/// a tiny tolerance (whose square underflows) nor a huge distance (whose square overflows) decides it.
+fn closer_than(p: &[f64; 3], q: &[f64; 3], tolerance: f64) -> bool {
+    let d = [0, 1, 2].map(|i| (p[i] - q[i]) / tolerance);
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < 1.0
+}
+
+/// The cubic cells of the tolerance weld's spatial hash.
+///
+/// Points closer than the tolerance must land in the same or adjacent cells, so a cell is at least the
+/// tolerance wide (with a margin for the rounding of `x / size`). It is also at least `2^-40` of the
+/// largest coordinate, so cell numbers stay far inside `i64`: with a tolerance tiny next to the
+/// coordinates, `x / tolerance` would saturate and put every point in one cell, making the weld
+/// quadratic. Bigger cells only hold more points; they never change which points weld.
+#[derive(Debug, Clone, Copy)]
+struct Cell {
+    size: f64,
+}
+
+impl Cell {
+    fn new(positions: &[[f64; 3]], tolerance: f64) -> Cell {
+        let largest = positions
+            .iter()
+            .filter(|p| is_valid(p))
+            .flat_map(|p| p.iter().map(|x| x.abs()))
+            .fold(0.0, f64::max);
+        let size = tolerance.max(largest * 2f64.powi(-40)) * (1.0 + 2f64.powi(-8));
+        Cell {
+            size: size.min(f64::MAX),
+        }
+    }
+
+    /// The cell of a valid point: `|x / size| <= 2^40`, so the floors (and their neighbours) are exact
+    /// integers, and two points closer than the tolerance differ by at most 1 in each.
+    fn of(&self, p: &[f64; 3]) -> [i64; 3] {
+        p.map(|x| (x / self.size).floor() as i64)
+    }
 }
 
 #[cfg(test)]
@@ -178,5 +212,45 @@ mod tests {
         ];
         let w = weld(&pts, 0.5);
         assert_eq!(w.map, vec![0, 0, 1, 0]);
+    }
+
+    /// The tolerance weld keeps the first input vertex's position with -0.0 read as 0.0 (the
+    /// [`Welded::positions`] doc), like the exact weld: `(-0, 1, -0)` is stored as `(0, 1, 0)`, bit for
+    /// bit.
+    #[test]
+    fn tolerance_weld_reads_negative_zero_as_zero() {
+        let w = weld(&[[-0.0, 1.0, -0.0], [0.0, 1.0, 0.0]], 0.5);
+        assert_eq!(w.map, vec![0, 0]);
+        assert_eq!(
+            w.positions[0].map(f64::to_bits),
+            [0.0, 1.0, 0.0].map(f64::to_bits)
+        );
+    }
+
+    /// A tolerance of 1e-300 next to coordinates up to 1e13: `x / tolerance` is about 1e313, past
+    /// `i64` (and f64) range, so cells taken as `floor(x / tolerance)` would all be one saturated cell.
+    /// The cells of the 1,000 points `(1e10 i, 0, 0)` must be 1,000 distinct cells.
+    #[test]
+    fn tiny_tolerance_keeps_far_points_in_distinct_cells() {
+        let points: Vec<[f64; 3]> = (1..=1000).map(|i| [1e10 * i as f64, 0.0, 0.0]).collect();
+        let cell = Cell::new(&points, 1e-300);
+        let mut keys: Vec<[i64; 3]> = points.iter().map(|p| cell.of(p)).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), points.len());
+    }
+
+    /// With that tolerance the 1,000 far points stay apart (1e10 apart), while two points near the
+    /// origin 5e-301 apart (half the tolerance) weld: welded 1,001. Squared, the tolerance (1e-600) and
+    /// the distance (2.5e-601) both underflow to 0, so comparing squares would keep them apart.
+    #[test]
+    fn tiny_tolerance_welds_by_distance_not_by_its_square() {
+        let mut points: Vec<[f64; 3]> = (1..=1000).map(|i| [1e10 * i as f64, 0.0, 0.0]).collect();
+        points.push([0.0, 0.0, 0.0]);
+        points.push([5e-301, 0.0, 0.0]);
+        let w = weld(&points, 1e-300);
+        assert_eq!(w.positions.len(), 1001);
+        assert_eq!(w.map[1000], w.map[1001]);
+        assert_eq!(&w.map[..1000], &(0..1000).collect::<Vec<u32>>()[..]);
     }
 }

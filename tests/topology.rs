@@ -617,6 +617,12 @@ fn tetrahedra_sharing_a_vertex_are_two_shells() {
 /// 1 non-manifold edge, 6 border edges. Vertices 0 and 1 have the valence-3 edge in their star: 2
 /// non-manifold vertices (2, 3 and 4 each bound one triangle). One component (linked through edge
 /// 01), not manifold: genus undefined, no shell. No edge has valence 2, so none is inconsistent.
+///
+/// Holes (SPEC 7, loops of border edges on the undirected border): the border is three paths from 0
+/// to 1, `0-2-1`, `0-3-1`, `0-4-1` (each fin's two border edges, joined at its apex by the swing
+/// through the fin). At 0 and at 1 the swing around the vertex stops at the non-manifold edge 01 and
+/// cannot pick a next border edge, so the three border ends meeting there are one loop: the 6 border
+/// edges make 1 loop, b = 1.
 #[test]
 fn three_triangles_on_an_edge() {
     let mesh = Mesh::new(
@@ -643,8 +649,70 @@ fn three_triangles_on_an_edge() {
     let c = &a.components[0];
     assert!(!c.manifold && !c.closed);
     assert_eq!((c.nonmanifold_edges, c.euler, c.genus), (1, 1, None));
+    assert_eq!((c.border_edges, c.holes), (6, 1));
+    assert_eq!(a.holes(), 1);
     assert_eq!(a.genus(), None);
     assert_volume(a.volume(), None);
+}
+
+/// Two copies of [`three_triangles_on_an_edge`] touching at vertex 0 only: `0 1 2`, `1 0 3`, `0 1 4`
+/// around edge 0-1 and `0 5 6`, `5 0 7`, `0 5 8` around edge 0-5 (the second fin is the first
+/// mirrored through the plane x = 0).
+///
+/// V 9 (vertex 0 shared), E 7 + 7 = 14, F 6, chi = 9 - 14 + 6 = 1. The fins share no edge: 2
+/// components, each V 5 E 7 F 3, chi 1, 6 border edges, 1 loop as derived for one fin (b = 1), not
+/// manifold (genus undefined). Mesh: 12 border edges, 2 non-manifold edges, non-manifold vertices 0,
+/// 1 and 5; holes 1 + 1 = 2. At vertex 0 both fins' loops have border ends stopped by a non-manifold
+/// edge; they belong to different components and are different loops.
+#[test]
+fn fins_touching_at_a_vertex_keep_a_hole_each() {
+    let mesh = Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.5, 1.0, 0.0],
+            [0.5, -1.0, 0.0],
+            [0.5, 0.0, 1.0],
+            [-1.0, 0.0, 0.0],
+            [-0.5, 1.0, 0.0],
+            [-0.5, -1.0, 0.0],
+            [-0.5, 0.0, 1.0],
+        ],
+        vec![
+            [0, 1, 2],
+            [1, 0, 3],
+            [0, 1, 4],
+            [0, 5, 6],
+            [5, 0, 7],
+            [0, 5, 8],
+        ],
+    );
+    let a = run(&mesh);
+    assert_eq!(
+        counts(&a),
+        Counts {
+            border_edges: 12,
+            nonmanifold_edges: 2,
+            nonmanifold_vertices: 3,
+            components: 2,
+            ..clean(9, 14, 6)
+        }
+    );
+    for c in &a.components {
+        assert!(!c.manifold && !c.closed);
+        assert_eq!(
+            (
+                c.vertices,
+                c.edges,
+                c.faces,
+                c.border_edges,
+                c.holes,
+                c.genus
+            ),
+            (5, 7, 3, 6, 1, None)
+        );
+    }
+    assert_eq!(a.holes(), 2);
 }
 
 /// Two unit cubes sharing the edge from (1,1,0) to (1,1,1): `[0,1]^3` and `[1,2] x [1,2] x [0,1]`.
@@ -682,6 +750,12 @@ fn cubes_sharing_an_edge() {
 /// the 6 others one. All faces are linked through edges: 1 component. Vertex 0's faces A and B share
 /// no edge: two fans, 1 non-manifold vertex, so the component itself is not manifold (SPEC 7) and its
 /// genus is undefined. Windings agree across 12, 24 and 34: 0 inconsistent.
+///
+/// Holes: the border edges are 01 and 02 (A), 14 (`2 1 4`), 23 (`2 4 3`), 03 and 04 (B). Following the
+/// border with the swing, which at each vertex goes through one fan to the border edge on its other
+/// side: 01, at 1 through A and `2 1 4` to 14, at 4 through `2 1 4`, `2 4 3`, B to 04, at 0 through B
+/// to 03, at 3 through B and `2 4 3` to 23, at 2 through `2 4 3`, `2 1 4`, A to 02, at 0 through A
+/// back to 01: one loop of all 6 border edges, passing vertex 0 twice. b = 1.
 #[test]
 fn strip_pinched_at_a_vertex_is_one_nonmanifold_component() {
     let mesh = Mesh::new(
@@ -707,6 +781,8 @@ fn strip_pinched_at_a_vertex_is_one_nonmanifold_component() {
     let c = &a.components[0];
     assert!(!c.manifold && !c.closed);
     assert_eq!((c.euler, c.genus), (0, None));
+    assert_eq!((c.border_edges, c.holes), (6, 1));
+    assert_eq!(a.holes(), 1);
     assert_eq!(a.genus(), None);
 }
 
@@ -833,6 +909,71 @@ fn cube_with_one_flipped_triangle() {
     assert_eq!(a.inside_out_shells(), 0);
     assert_shells(&a, &[(0, Role::Solid, Some(1.0))]);
     assert_volume(a.volume(), Some(1.0));
+}
+
+/// The unit cube with the triangles of three of its sides reversed: a tie, 6 of 12 faces each way.
+fn cube_with_half_reversed(sides: [usize; 3]) -> Mesh {
+    let mut mesh = cube();
+    for side in sides {
+        for t in [2 * side, 2 * side + 1] {
+            let [a, b, c] = mesh.triangles[t];
+            mesh.triangles[t] = [a, c, b];
+        }
+    }
+    mesh
+}
+
+/// The sides (pairs of [`BOX_TRIANGLES`]) meeting at corner (0,0,0): z = 0, y = 0, x = 0.
+const LOW_SIDES: [usize; 3] = [0, 2, 4];
+/// The sides meeting at corner (1,1,1): z = 1, y = 1, x = 1.
+const HIGH_SIDES: [usize; 3] = [1, 3, 5];
+
+/// The unit cube with the 6 triangles of its three sides at (0,0,0) reversed, and the same with the
+/// three sides at (1,1,1) reversed: exactly half of the faces each way, so neither winding is the
+/// majority's and the volume takes the tie-break winding (SPEC 8 needs a consistent winding; the
+/// choice must not depend on how vertices are numbered).
+///
+/// Counts as the cube (V 8, E 18, F 12, chi 2, genus 0, a shell). Reversing both faces of a pair of
+/// adjacent sides keeps their shared edge consistent; the edges between a reversed and a kept side
+/// are the 6 cube edges of the hexagon between the two corners (for the low corner: 2-3, 1-3, 4-5,
+/// 1-5, 4-6, 2-6 in [`BOX_TRIANGLES`]' numbering): 6 inconsistent edges. Orientable, not oriented,
+/// so never inside out.
+///
+/// Tie-break: the winding of the face whose vertex positions, sorted (x, then y, then z), come first.
+/// Every face on (0,0,0) starts with it; the next positions in that order are (0,0,1) (faces `0 5 4`
+/// and `0 4 6`) and then (0,1,1) < (1,0,1): face `0 4 6`, on the x = 0 side. With the low sides
+/// reversed it looks into the cube: volume -1; with the high sides reversed it is as stored: +1.
+/// Relabelling vertices, permuting faces or rotating corners changes neither (the mesh volume, by
+/// role, is 1 in both).
+#[test]
+fn cube_with_half_its_faces_reversed_takes_a_tie_break_no_numbering_decides() {
+    for (sides, expected) in [(LOW_SIDES, -1.0), (HIGH_SIDES, 1.0)] {
+        let mesh = cube_with_half_reversed(sides);
+        let a = run(&mesh);
+        assert_eq!(
+            counts(&a),
+            Counts {
+                inconsistent_edges: 6,
+                components: 1,
+                shells: 1,
+                ..clean(8, 18, 12)
+            }
+        );
+        assert!(a.orientable() && !a.oriented());
+        assert_shells(&a, &[(0, Role::Solid, Some(expected))]);
+        assert_eq!(a.inside_out_shells(), 0);
+        assert_volume(a.volume(), Some(1.0));
+        let mut rng = XorShift::new(7);
+        for round in 0..32 {
+            let moved = match round % 3 {
+                0 => relabel_vertices(&mesh, &mut rng),
+                1 => permute_faces(&relabel_vertices(&mesh, &mut rng), &mut rng),
+                _ => rotate_corners(&relabel_vertices(&mesh, &mut rng), &mut rng),
+            };
+            let b = run(&moved);
+            assert_volume(b.shells[0].volume, Some(expected));
+        }
+    }
 }
 
 /// The unit cube with every face reversed: oriented (all edges consistent), raw volume -1 at depth 0
@@ -1094,16 +1235,186 @@ fn cavity_touching_the_outer_surface_at_a_vertex() {
     assert_volume(a.volume(), Some(8.0 - 1.0 / 12.0));
 }
 
-/// A unit cube far from the origin, `[1e6, 1e6 + 1]^3` (exact in f64), next to one at the origin:
-/// both volumes are still 1 (SPEC 8 takes P, the apex of the tetrahedra, near each shell).
+/// A small cube far from the origin next to a big one far away on the other side: `[lo, hi]^3` with
+/// `lo = 1e7 + 0.1` and `hi = lo + 0.7` (both rounded: neither is a dyadic number), and
+/// `[-1e9, -1e9 + 10]^3`.
+///
+/// The small cube's side as stored is `s = hi - lo`, exact in f64 (Sterbenz: `hi / 2 <= lo <= hi`),
+/// so its volume is `s^3` (about 0.343). The big cube's is 1000. Both depth 0, solids, volume sum.
+/// SPEC 8 takes P as the mean of each shell's own vertices, so the small cube's terms
+/// `mp(A-P, B-P, C-P)` are of the size of its own volume; an apex between the two cubes (such as the
+/// centre of the mesh's bounding box, near -5e8) makes each term about 5e8 x 0.49 and the rounding
+/// of their sum (ulp(5e8) is 6e-8) is far above the 1e-9 tolerance.
 #[test]
 fn cube_far_from_the_origin_keeps_its_volume() {
-    let a = run(&merge(&[cube(), cube_at(1e6, 1.0)]));
+    let lo = 1e7 + 0.1;
+    let hi = lo + 0.7;
+    let side = hi - lo;
+    let a = run(&merge(&[
+        cuboid([lo; 3], [hi; 3]),
+        cuboid([-1e9; 3], [-1e9 + 10.0; 3]),
+    ]));
     assert_shells(
         &a,
-        &[(0, Role::Solid, Some(1.0)), (0, Role::Solid, Some(1.0))],
+        &[
+            (0, Role::Solid, Some(side * side * side)),
+            (0, Role::Solid, Some(1000.0)),
+        ],
     );
-    assert_volume(a.volume(), Some(2.0));
+    assert_eq!(a.inside_out_shells(), 0);
+    assert_volume(a.volume(), Some(side * side * side + 1000.0));
+}
+
+/// 2,000 unit cubes `[0,1] x [0,1] x [2i, 2i+1]` lined up along z (equal x and y ranges, so a
+/// nesting sweep along x alone prunes nothing). Each is V 8 E 18 F 12 chi 2, disjoint from the
+/// others: 2,000 components and shells, all at depth 0, all solids, volume 2,000.
+///
+/// Then the same cubes reversed inside one box `[-1,2] x [-1,2] x [-1,4000]` (outward): every small
+/// cube's vertices are strictly inside the box and outside every other cube: the box at depth 0, the
+/// cubes at depth 1 (cavities, raw volume -1, right for a cavity). Volume 3 x 3 x 4001 - 2,000 =
+/// 34,009.
+#[test]
+fn cubes_lined_up_along_z_nest_correctly() {
+    let cubes: Vec<Mesh> = (0..2000)
+        .map(|i| {
+            let z = 2.0 * i as f64;
+            cuboid([0.0, 0.0, z], [1.0, 1.0, z + 1.0])
+        })
+        .collect();
+    let a = run(&merge(&cubes));
+    assert_eq!(
+        counts(&a),
+        Counts {
+            components: 2000,
+            shells: 2000,
+            ..clean(16_000, 36_000, 24_000)
+        }
+    );
+    assert!(a
+        .shells
+        .iter()
+        .all(|s| s.depth == 0 && s.role == Role::Solid));
+    assert_eq!(
+        (a.solids(), a.cavities(), a.inside_out_shells()),
+        (2000, 0, 0)
+    );
+    assert_volume(a.volume(), Some(2000.0));
+
+    let mut parts: Vec<Mesh> = cubes.iter().map(flipped).collect();
+    parts.push(cuboid([-1.0, -1.0, -1.0], [2.0, 2.0, 4000.0]));
+    let a = run(&merge(&parts));
+    assert_eq!((a.shells.len(), a.solids(), a.cavities()), (2001, 1, 2000));
+    let big = a.shells.last().expect("the box");
+    assert_eq!((big.depth, big.role), (0, Role::Solid));
+    assert!(a.shells[..2000]
+        .iter()
+        .all(|s| s.depth == 1 && s.role == Role::Cavity && !s.inside_out));
+    assert_volume(a.volume(), Some(9.0 * 4001.0 - 2000.0));
+}
+
+/// A hexagonal pyramid cavity standing on the floor of `[0,4]^3` (outward): base `(1,2) (1.5,1)
+/// (2.5,1) (3,2) (2.5,3) (1.5,3)` on z = 0, apex `(2,2,1)`, faces looking into the void. Its four base
+/// triangles are listed first and all start at its lowest vertex `(1,2,0)`, so its first faces, in
+/// any order the analysis walks them, use only the six base vertices, all on the cube's floor. Only
+/// the apex is strictly inside the cube: containment must try distinct vertices until it reaches it.
+///
+/// V 8 + 7 = 15; E 18 + (6 base edges + 3 base diagonals + 6 slant edges) = 33; F 12 + 4 + 6 = 22;
+/// chi = 15 - 33 + 22 = 4. 2 components, 2 shells of genus 0. Pyramid: base area = the rectangle
+/// `[1.5,2.5] x [1,3]` (2) plus two triangles of base 2 and height 0.5 (0.5 each) = 3; volume
+/// 3 x 1 / 3 = 1, raw -1 (facing the void). The cube at depth 0, the pyramid at depth 1: volume
+/// 64 - 1 = 63.
+#[test]
+fn cavity_whose_first_faces_lie_on_the_outer_surface() {
+    let base = [
+        [1.0, 2.0, 0.0],
+        [1.5, 1.0, 0.0],
+        [2.5, 1.0, 0.0],
+        [3.0, 2.0, 0.0],
+        [2.5, 3.0, 0.0],
+        [1.5, 3.0, 0.0],
+    ];
+    let mut positions = base.to_vec();
+    positions.push([2.0, 2.0, 1.0]);
+    // Outward: the base seen from below, the sides counterclockwise from outside.
+    let mut triangles: Vec<[u32; 3]> = (1..5).map(|i| [0, i + 1, i]).collect();
+    triangles.extend((0..6).map(|i| [i, (i + 1) % 6, 6]));
+    let pyramid = Mesh::new(positions, triangles);
+    let a = run(&merge(&[cube_at(0.0, 4.0), flipped(&pyramid)]));
+    assert_eq!(
+        counts(&a),
+        Counts {
+            components: 2,
+            shells: 2,
+            ..clean(15, 33, 22)
+        }
+    );
+    assert_shells(
+        &a,
+        &[(0, Role::Solid, Some(64.0)), (1, Role::Cavity, Some(-1.0))],
+    );
+    assert_eq!(a.inside_out_shells(), 0);
+    assert_volume(a.volume(), Some(63.0));
+}
+
+/// The first segment direction of the point-in-solid test, `(1, 1.234567891e-4, 2.718281828e-4)`,
+/// and its length `2 x (largest side of the outer box) + 1` (see `nesting.rs`).
+const FIRST_DIRECTION: [f64; 3] = [1.0, 1.234_567_891e-4, 2.718_281_828e-4];
+
+/// A tetrahedral cavity whose lowest vertex is the origin, inside a box built so that the first
+/// segment from the origin leaves the box exactly through one of its edges, or exactly through one of
+/// its corners.
+///
+/// The box spans x in `[-1.75, 2.25]` and z in `[-2, 2]` (sides 4, the largest), so the segment is
+/// 9 long and ends at `F = (9, fy, fz)` with `fy = 9 x 1.234567891e-4` and `fz = 9 x 2.718281828e-4`
+/// (rounded as the test rounds them). Its point at x = 2.25 = 9 / 4 is exactly `(2.25, fy/4, fz/4)`
+/// (quartering is exact). With the box's top y at `Y = fy / 4` (y in `[Y - 2, Y]`), that point is on
+/// the vertical edge x = 2.25, y = Y; with also its top z at `fz / 4` (z in `[Z - 2, Z]`, x still
+/// the largest side), it is the corner. The exact predicates see the segment meet that edge or
+/// vertex: the parity there would be a guess, so another direction must be taken.
+///
+/// The cavity `(0,0,0) (1,-1,-1+dz) (1,-1.5,dz) (1,-0.5,dz)` (dz = 0.5 for the edge case, 0 for the
+/// corner case) lies strictly inside the box: every vertex has x in [0, 1], y in [-1.5, 0] (and
+/// 0 < Y), z in [-1, dz] (and dz < Z; -1 > Z - 2). Its lowest vertex by (x, y, z) is the origin, the
+/// one tested first. Its volume: base triangle at x = 1 with a side of 1 (along y) and height 1
+/// (along z): area 1/2, apex distance 1: 1/6; raw -1/6 facing the void. Box at depth 0,
+/// tetrahedron at depth 1; volume 4 x 2 x 4 - 1/6 (the box's y and z sides are 2 up to the rounding
+/// of `Y - 2`, far below the tolerance).
+#[test]
+fn first_segment_through_an_edge_or_a_corner_of_the_outer_box() {
+    let reach = 9.0;
+    let fy = reach * FIRST_DIRECTION[1];
+    let fz = reach * FIRST_DIRECTION[2];
+    for corner in [false, true] {
+        let y_hi = fy / 4.0;
+        let (z_lo, z_hi) = if corner {
+            (fz / 4.0 - 2.0, fz / 4.0)
+        } else {
+            (-2.0, 2.0)
+        };
+        let dz = if corner { 0.0 } else { 0.5 };
+        let outer = cuboid([-1.75, y_hi - 2.0, z_lo], [2.25, y_hi, z_hi]);
+        // Outward: the base (x = 1) seen from +x, and the three faces on the apex.
+        let tetra = Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, -1.0, -1.0 + dz],
+                [1.0, -1.5, dz],
+                [1.0, -0.5, dz],
+            ],
+            vec![[1, 3, 2], [0, 3, 1], [0, 2, 3], [0, 1, 2]],
+        );
+        let a = run(&merge(&[outer, flipped(&tetra)]));
+        let box_volume = 4.0 * (y_hi - (y_hi - 2.0)) * (z_hi - z_lo);
+        assert_shells(
+            &a,
+            &[
+                (0, Role::Solid, Some(box_volume)),
+                (1, Role::Cavity, Some(-1.0 / 6.0)),
+            ],
+        );
+        assert_eq!(a.inside_out_shells(), 0, "corner: {corner}");
+        assert_volume(a.volume(), Some(box_volume - 1.0 / 6.0));
+    }
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -1253,6 +1564,63 @@ fn zero_area_face_is_counted_and_kept() {
     assert_eq!(a.holes(), 1);
     assert_eq!(a.genus(), Some(0));
     assert_volume(a.volume(), Some(1.0 / 6.0));
+}
+
+/// SPEC 4's threshold, area <= 1e-12 x (bounding-box diagonal)^2, with 1% to spare either way: the
+/// tetrahedron (box `[0,1]^3`, diagonal^2 = 3, threshold 3e-12) plus two separate right triangles in
+/// that box, legs 0.8 along x and h along y, area 0.4 h: h = 7.4e-12 gives 2.96e-12 (zero-area),
+/// h = 7.6e-12 gives 3.04e-12 (not). A factor off by 2 (area against |cross|), or the diagonal not
+/// squared (threshold 1.7e-12), counts 0 or 2.
+///
+/// V 4 + 6 = 10, E 6 + 6 = 12, F 6, chi = 10 - 12 + 6 = 4; 3 components (the thin triangles each V 3
+/// E 3 F 1, one hole, genus 0); 6 border edges; one shell, volume 1/6.
+#[test]
+fn zero_area_threshold_is_1e_12_diagonal_squared() {
+    let mut mesh = tetrahedron();
+    for (h, z) in [(7.4e-12, 0.5), (7.6e-12, 0.25)] {
+        let base = mesh.positions.len() as u32;
+        mesh.positions
+            .extend([[0.1, 0.0, z], [0.9, 0.0, z], [0.1, h, z]]);
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    let a = run(&mesh);
+    assert_eq!(
+        counts(&a),
+        Counts {
+            zero_area_faces: 1,
+            border_edges: 6,
+            components: 3,
+            shells: 1,
+            ..clean(10, 12, 6)
+        }
+    );
+    assert_eq!(a.holes(), 2);
+    assert_volume(a.volume(), Some(1.0 / 6.0));
+}
+
+/// A closed cube `[10,11]^3` next to the Moebius strip of [`moebius_strip_is_not_orientable`] (within
+/// radius 2.5 of the origin, so no position is shared): V 8 + 10 = 18, E 18 + 20 = 38, F 12 + 10 = 22,
+/// chi = 2 + 0 = 2; 2 components; the strip's 10 border edges make 1 hole; its rung 0 is the 1
+/// inconsistent edge. The cube's genus is 0, the strip's undefined (not orientable), so the mesh's
+/// genus, a sum "where all are defined" (SPEC 7), is undefined. One shell (the cube), volume 1.
+#[test]
+fn genus_is_undefined_when_one_component_is_not_orientable() {
+    let a = run(&merge(&[cube_at(10.0, 1.0), shapes::moebius(5)]));
+    assert_eq!(
+        counts(&a),
+        Counts {
+            border_edges: 10,
+            inconsistent_edges: 1,
+            components: 2,
+            shells: 1,
+            ..clean(18, 38, 22)
+        }
+    );
+    let genera: Vec<Option<i64>> = a.components.iter().map(|c| c.genus).collect();
+    assert_eq!(genera, vec![Some(0), None]);
+    assert_eq!(a.holes(), 1);
+    assert_eq!(a.genus(), None);
+    assert_volume(a.volume(), Some(1.0));
 }
 
 /// The tetrahedron with its first face `0 2 1` stored twice (same winding).
@@ -1590,6 +1958,14 @@ fn suite() -> Vec<(&'static str, Mesh)> {
         ("degenerate", degenerate),
         ("invalid and unreferenced", invalid),
         ("zero area", thin),
+        (
+            "cube, low half reversed",
+            cube_with_half_reversed(LOW_SIDES),
+        ),
+        (
+            "cube, high half reversed",
+            cube_with_half_reversed(HIGH_SIDES),
+        ),
         ("empty", Mesh::new(vec![], vec![])),
     ]
 }

@@ -40,13 +40,6 @@ pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
     let zero_cross2 = (2e-12 * diagonal2).powi(2);
     let mut referenced = vec![false; points.len()];
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
-    // Six times the signed volume of the tetrahedron (centre, a, b, c) of every kept face, taken here
-    // while the face's points are at hand; shells sum them later. For a closed shell the sum does not
-    // depend on the apex, and the bounding-box centre keeps the terms small.
-    let centre = a.bbox.map_or([0.0; 3], |[lo, hi]| {
-        [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]))
-    });
-    let mut six_volume: Vec<f64> = Vec::with_capacity(mesh.triangles.len());
     // The input index of every kept face.
     let mut source: Vec<u32> = Vec::with_capacity(mesh.triangles.len());
     for (index, t) in mesh.triangles.iter().enumerate() {
@@ -66,7 +59,6 @@ pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
                 a.zero_area_faces += 1;
             }
             a.area += 0.5 * cross2.sqrt();
-            six_volume.push(dot(&sub(p, &centre), &n));
             triangles.push(w);
             source.push(index as u32);
         }
@@ -76,7 +68,6 @@ pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
 
     let order = vertex_order(&triangles, points.len());
     let triangles: Vec<[u32; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
-    let six_volume: Vec<f64> = order.iter().map(|&i| six_volume[i as usize]).collect();
     let source: Vec<u32> = order.iter().map(|&i| source[i as usize]).collect();
     drop(order);
 
@@ -158,7 +149,6 @@ pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
         table: &table,
         points,
         patches: &patches,
-        six_volume: &six_volume,
     };
     a.shells = shells(&faces, &component_of, &components, &fans.fans);
     a.components = components;
@@ -353,9 +343,10 @@ fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans 
     let mut vertices_per_component = Vec::new();
     // (vertex, component) of every fan at a vertex with two or more fans.
     let mut multi: Vec<(u32, u32)> = Vec::new();
-    // Border edges whose ends are joined at a vertex, as corner pairs; and lone ends per vertex.
+    // Border edges whose ends are joined at a vertex, as corner pairs; and lone ends (a fan that ends
+    // at a border on one side and at a non-manifold edge on the other) as (vertex, component, corner).
     let mut joins: Vec<(u32, u32)> = Vec::new();
-    let mut lone: Vec<(u32, u32)> = Vec::new();
+    let mut lone: Vec<(u32, u32, u32)> = Vec::new();
     let mut fans: Vec<(u32, u32)> = Vec::new();
 
     // From the corner at the vertex in one face, leave through the edge opposite `exit` (`p(c)` or
@@ -418,7 +409,9 @@ fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans 
         let behind = walk(c, false, &mut visited);
         match (ahead, behind) {
             (FanEnd::Border(x), FanEnd::Border(y)) => joins.push((x, y)),
-            (FanEnd::Border(x), _) | (_, FanEnd::Border(x)) => lone.push((v as u32, x)),
+            (FanEnd::Border(x), _) | (_, FanEnd::Border(x)) => {
+                lone.push((v as u32, comp as u32, x))
+            }
             _ => {}
         }
     }
@@ -437,7 +430,10 @@ fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans 
     }
     split_components.dedup();
 
-    // Holes: border edges joined at their ends by fans; lone ends at one vertex joined together.
+    // Holes: border edges joined at their ends by fans. Where the swing stops at a non-manifold edge
+    // it cannot choose the next border edge, so the lone ends of one component at one vertex are one
+    // loop; lone ends of different components meeting at a vertex stay apart (a component's holes
+    // are its own).
     let border: Vec<u32> = (0..nc as u32).filter(|&c| table.is_border(c)).collect();
     let index = |c: u32| border.binary_search(&c).expect("border corner") as u32;
     let mut parent: Vec<u32> = (0..border.len() as u32).collect();
@@ -446,8 +442,8 @@ fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans 
     }
     lone.sort_unstable();
     for w in lone.windows(2) {
-        if w[0].0 == w[1].0 {
-            union(&mut parent, index(w[0].1), index(w[1].1));
+        if (w[0].0, w[0].1) == (w[1].0, w[1].1) {
+            union(&mut parent, index(w[0].2), index(w[1].2));
         }
     }
     let hole_corners = (0..border.len() as u32)
@@ -470,7 +466,6 @@ struct Faces<'a> {
     table: &'a CornerTable,
     points: &'a [[f64; 3]],
     patches: &'a Patches,
-    six_volume: &'a [f64],
 }
 
 /// Sets bit `i`, returning whether it was set before.
@@ -508,6 +503,9 @@ fn shells(
     if shells.is_empty() {
         return shells;
     }
+    // Bounding box and P, the mean of the shell's vertices (SPEC 8): a shell is manifold, so each of
+    // its vertices has exactly one fan in it.
+    let mut mean = vec![[0.0f64; 3]; shells.len()];
     for &(v, comp) in fans {
         let s = shell_of[comp as usize];
         if s != UNSET {
@@ -516,30 +514,51 @@ fn shells(
             for k in 0..3 {
                 bbox[0][k] = bbox[0][k].min(p[k]);
                 bbox[1][k] = bbox[1][k].max(p[k]);
+                mean[s as usize][k] += p[k];
             }
         }
     }
+    for (m, shell) in mean.iter_mut().zip(&shells) {
+        *m = m.map(|x| x / shell.vertices as f64);
+    }
 
-    // Volume with the faces in a consistent winding: the stored one of the majority of the faces (on a
-    // tie, the winding of the shell's lowest face).
+    // Six times the volume, `sum mp(A-P, B-P, C-P)`, with the faces of parity `true` negated: the
+    // winding of the faces of parity `false`. The shell's winding is the majority's; on a tie, that of
+    // the face that comes first by position (below), so no numbering decides it.
     let nt = faces.table.triangle_count() as u32;
     let flip = &faces.patches.flip;
+    let triangles = faces.table.triangles();
     let mut flipped = vec![0usize; shells.len()];
     let mut six_volume = vec![0.0f64; shells.len()];
     for t in 0..nt {
         let s = shell_of[component_of(t)];
         if s != UNSET {
-            let term = faces.six_volume[t as usize];
-            flipped[s as usize] += usize::from(flip[t as usize]);
-            six_volume[s as usize] += if flip[t as usize] { -term } else { term };
+            let s = s as usize;
+            let [a, b, c] = triangles[t as usize].map(|i| sub(&faces.points[i as usize], &mean[s]));
+            let term = dot(&a, &cross(&b, &c));
+            flipped[s] += usize::from(flip[t as usize]);
+            six_volume[s] += if flip[t as usize] { -term } else { term };
         }
     }
+    let tied: Vec<bool> = shells
+        .iter()
+        .zip(&flipped)
+        .map(|(shell, &f)| shell.orientable && 2 * f == shell.faces)
+        .collect();
+    let tie_flipped = if tied.contains(&true) {
+        first_faces_flip(faces, component_of, &shell_of, &tied)
+    } else {
+        vec![false; shells.len()]
+    };
     for (i, shell) in shells.iter_mut().enumerate() {
         if shell.orientable {
-            // Faces with parity `true` were summed negated: that is the winding of the unflipped faces.
-            let majority_flipped = 2 * flipped[i] > shell.faces;
+            let take_flipped = if tied[i] {
+                tie_flipped[i]
+            } else {
+                2 * flipped[i] > shell.faces
+            };
             let v = six_volume[i] / 6.0;
-            shell.volume = Some(if majority_flipped { -v } else { v });
+            shell.volume = Some(if take_flipped { -v } else { v });
         }
     }
 
@@ -593,6 +612,53 @@ fn shells(
             };
     }
     shells
+}
+
+/// For each shell marked in `tied`, the parity of its first face by position: the face whose three
+/// vertex positions, each sorted by (x, y, z), come first lexicographically. Distinct welded vertices
+/// have distinct positions, and in a closed manifold shell two faces on the same three vertices are a
+/// two-face pillow (either face gives the same winding), so the choice depends on no vertex number,
+/// face order or corner rotation.
+fn first_faces_flip(
+    faces: &Faces,
+    component_of: &impl Fn(u32) -> usize,
+    shell_of: &[u32],
+    tied: &[bool],
+) -> Vec<bool> {
+    let key = |t: u32| {
+        let mut k = faces.table.triangles()[t as usize].map(|i| faces.points[i as usize]);
+        k.sort_unstable_by(by_position);
+        k
+    };
+    let mut first: Vec<Option<(u32, [[f64; 3]; 3])>> = vec![None; tied.len()];
+    for t in 0..faces.table.triangle_count() as u32 {
+        let s = shell_of[component_of(t)];
+        if s == UNSET || !tied[s as usize] {
+            continue;
+        }
+        let k = key(t);
+        let slot = &mut first[s as usize];
+        let earlier = |best: &[[f64; 3]; 3]| {
+            (0..3)
+                .map(|i| by_position(&k[i], &best[i]))
+                .find(|o| o.is_ne())
+                .is_some_and(|o| o.is_lt())
+        };
+        if slot.as_ref().is_none_or(|(_, best)| earlier(best)) {
+            *slot = Some((t, k));
+        }
+    }
+    first
+        .iter()
+        .map(|f| f.is_some_and(|(t, _)| faces.patches.flip[t as usize]))
+        .collect()
+}
+
+/// Orders points by x, then y, then z.
+fn by_position(p: &[f64; 3], q: &[f64; 3]) -> std::cmp::Ordering {
+    p[0].total_cmp(&q[0])
+        .then(p[1].total_cmp(&q[1]))
+        .then(p[2].total_cmp(&q[2]))
 }
 
 /// Whether a shell's volume is too small for its sign to mean anything: at most 1e-12 of its

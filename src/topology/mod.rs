@@ -99,8 +99,11 @@ pub struct Shell {
     pub genus: Option<i64>,
     pub orientable: bool,
     pub oriented: bool,
-    /// Signed volume with the faces taken in a consistent winding (the stored one when the shell is
-    /// oriented, else the winding of the majority of its faces); `None` when not orientable.
+    /// Signed volume, `(1/6) sum mp(A-P, B-P, C-P)` with P the mean of the shell's vertices (SPEC 8),
+    /// with the faces taken in a consistent winding: the stored one when the shell is oriented, else
+    /// the winding of the majority of its faces, and on a tie the winding of its first face by
+    /// position (vertex positions sorted by x, y, z, compared lexicographically), so that no vertex
+    /// or face numbering decides the sign. `None` when not orientable.
     pub volume: Option<f64>,
     /// How many other shells contain this one.
     pub depth: usize,
