@@ -1,15 +1,25 @@
 //! Repaired copies of one scanned file (`scan --repair-dir DIR`, SPEC 10): for each mesh with a
 //! finding, plan the repair; when a plan changes anything, write the file's copy under DIR (the
 //! scanned tree mirrored, the input's format), read the copy back, analyse it, and fill the rows'
-//! `repaired_path`, `repairs` and `status_after`. A failure becomes a note in the rows' message;
-//! the scan goes on.
+//! `repaired_path`, `repairs`, `status_after` and `findings_after`.
+//!
+//! The copy and the files it needs beside it (an OBJ's `.mtl` and textures, a glTF's buffers and
+//! images) are first written to a private staging folder next to the copy's place, read back and
+//! analysed there, and only then renamed into place. So a copy that cannot be written, read back
+//! or judged leaves nothing behind: no copy, no side files, an empty `repaired_path`, and a
+//! `repair failed: ... - no copy written, the source is untouched` note in the message. A panic in
+//! the planning, the writer or the re-check is caught here and becomes the same note: the scan
+//! rows of the file are kept as they are. A planner that fails on one mesh costs that mesh's
+//! repair only; the file's other meshes are still repaired.
 
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::config::Settings;
 use crate::formats::{self, write, Format, ReadContext};
 use crate::mesh::Mesh;
-use crate::repair::{self, Plan};
+use crate::repair::{self, Options, Plan};
 use crate::rules::{self, MeshFacts, Status};
 use crate::scan::Outcome;
 use crate::topology::analyse;
@@ -26,6 +36,9 @@ pub fn copy_path(dir: &Path, display: &str) -> PathBuf {
     out
 }
 
+/// The prefix of staging folders (`.meshvet-stage-PID-N`), left only by a process that died.
+pub const STAGE_PREFIX: &str = ".meshvet-stage-";
+
 /// Repairs the meshes of one file (`outcomes[i]` is the row of `meshes[i]`).
 #[allow(clippy::too_many_arguments)]
 pub fn repair_file(
@@ -38,76 +51,293 @@ pub fn repair_file(
     outcomes: &mut [Outcome],
     settings: &Settings,
 ) {
+    repair_file_with(
+        dir,
+        display,
+        source,
+        format,
+        context,
+        meshes,
+        outcomes,
+        settings,
+        &repair::plan,
+    );
+}
+
+/// [`repair_file`] with the planning step given (`repair::plan` in a scan; tests pass planners
+/// that panic or return plans a writer cannot take).
+#[allow(clippy::too_many_arguments)]
+pub fn repair_file_with(
+    dir: &Path,
+    display: &str,
+    source: &Path,
+    format: Format,
+    context: &ReadContext,
+    meshes: &[Mesh],
+    outcomes: &mut [Outcome],
+    settings: &Settings,
+    planner: &dyn Fn(&Mesh, &Options) -> Plan,
+) {
     let options = settings.repair_options();
-    let plans: Vec<Option<Plan>> = meshes
-        .iter()
-        .zip(outcomes.iter())
-        .map(|(mesh, outcome)| {
-            if outcome.findings.is_empty() || mesh.triangles.is_empty() {
-                return None;
+    let mut plans: Vec<Option<Plan>> = Vec::with_capacity(meshes.len());
+    for (mesh, outcome) in meshes.iter().zip(outcomes.iter_mut()) {
+        if outcome.findings.is_empty() || mesh.triangles.is_empty() {
+            plans.push(None);
+            continue;
+        }
+        match caught(|| planner(mesh, &options)) {
+            Ok(plan) => {
+                if !plan.not_repairable.is_empty() {
+                    note(
+                        outcome,
+                        &format!("not repairable: {}", plan.not_repairable.join(", ")),
+                    );
+                }
+                // Only plans that change something are written; a mesh that needs nothing stays
+                // as it is.
+                plans.push(Some(plan).filter(Plan::changes));
             }
-            let plan = repair::plan(mesh, &options);
-            (plan.changes() || !plan.not_repairable.is_empty()).then_some(plan)
-        })
-        .collect();
-    for (plan, outcome) in plans.iter().zip(outcomes.iter_mut()) {
-        if let Some(plan) = plan {
-            if !plan.not_repairable.is_empty() {
+            Err(panic) => {
                 note(
                     outcome,
-                    &format!("not repairable: {}", plan.not_repairable.join(", ")),
+                    &format!("repair failed: the repair planner crashed ({panic}){UNTOUCHED}"),
                 );
+                plans.push(None);
             }
         }
     }
-    // Only plans that change something are written; a mesh that needs nothing stays as it is.
-    let plans: Vec<Option<Plan>> = plans.into_iter().map(|p| p.filter(Plan::changes)).collect();
     if plans.iter().all(Option::is_none) {
         return;
     }
     let out = copy_path(dir, display);
-    let failed = |outcomes: &mut [Outcome], plans: &[Option<Plan>], why: String| {
-        for (plan, outcome) in plans.iter().zip(outcomes.iter_mut()) {
-            if plan.is_some() {
-                note(outcome, &format!("repair failed: {why}"));
+    match caught(|| stage_and_check(&out, dir, source, format, context, meshes, &plans, settings)) {
+        Ok(Ok(checked)) => {
+            let repaired_path = out.to_string_lossy().replace('\\', "/");
+            for ((plan, outcome), after) in plans.iter().zip(outcomes.iter_mut()).zip(checked.after)
+            {
+                let (Some(plan), Some((status, findings))) = (plan, after) else {
+                    continue;
+                };
+                outcome.row.repaired_path = repaired_path.clone();
+                outcome.row.repairs = plan.summary();
+                outcome.row.status_after = status.to_string();
+                outcome.row.findings_after = crate::report::findings_cell(&findings);
+                for n in &checked.notes {
+                    note(outcome, &format!("copy: {n}"));
+                }
             }
         }
-    };
-    if let Err(e) = write::write_repaired(source, format, &plans, &out, context) {
-        return failed(outcomes, &plans, e.to_string());
+        Ok(Err(why)) => failed(outcomes, &plans, &why),
+        Err(panic) => failed(outcomes, &plans, &format!("internal error ({panic})")),
     }
+}
+
+/// The end of every `repair failed` note.
+const UNTOUCHED: &str = " - no copy written, the source is untouched";
+
+fn failed(outcomes: &mut [Outcome], plans: &[Option<Plan>], why: &str) {
+    for (plan, outcome) in plans.iter().zip(outcomes.iter_mut()) {
+        if plan.is_some() {
+            note(outcome, &format!("repair failed: {why}{UNTOUCHED}"));
+        }
+    }
+}
+
+/// A copy that was written, read back and judged, now in place.
+struct Checked {
+    /// Per mesh with a plan: the copy's status and findings.
+    after: Vec<Option<(Status, Vec<rules::Finding>)>>,
+    /// The writer's notes (what the copy could not keep).
+    notes: Vec<String>,
+}
+
+/// Writes the copy into a staging folder beside `out`, reads it back and analyses it there, then
+/// moves it (and its side files) into place. On any error the staging folder is removed and
+/// nothing is left at `out`.
+#[allow(clippy::too_many_arguments)]
+fn stage_and_check(
+    out: &Path,
+    dir: &Path,
+    source: &Path,
+    format: Format,
+    context: &ReadContext,
+    meshes: &[Mesh],
+    plans: &[Option<Plan>],
+    settings: &Settings,
+) -> Result<Checked, String> {
+    if let (Ok(a), Ok(b)) = (source.canonicalize(), out.canonicalize()) {
+        if a == b {
+            return Err(
+                "the repaired copy would overwrite its source: choose an output folder \
+                        outside the scanned files"
+                    .into(),
+            );
+        }
+    }
+    let folder = out.parent().unwrap_or(dir);
+    let mut stage = Stage::new(folder)?;
+    let name = out
+        .file_name()
+        .ok_or_else(|| "the copy has no file name".to_owned())?;
+    let staged = stage.path.join(name);
+    let written =
+        write::write_copy(source, format, plans, &staged, context).map_err(|e| e.to_string())?;
     // Read the copy back and judge it as the scan judges a file.
     let copy_context = ReadContext {
-        root: dir.to_path_buf(),
+        root: stage.path.clone(),
         limits: context.limits.clone(),
     };
-    let again = match formats::read(&out, format, &copy_context) {
+    let again = match formats::read(&staged, format, &copy_context) {
         Ok(again) if again.len() == meshes.len() => again,
-        Ok(_) => {
-            return failed(
-                outcomes,
-                &plans,
-                "the copy has a different number of meshes".into(),
-            )
+        Ok(_) => return Err("the copy has a different number of meshes".into()),
+        Err(e) => {
+            let e = e
+                .to_string()
+                .replace(&*stage.path.to_string_lossy(), &folder.to_string_lossy());
+            return Err(format!("the copy cannot be read: {e}"));
         }
-        Err(e) => return failed(outcomes, &plans, format!("the copy cannot be read: {e}")),
     };
     let analysis_options = settings.options();
-    let repaired_path = out.to_string_lossy().replace('\\', "/");
-    for ((plan, outcome), mesh) in plans.iter().zip(outcomes.iter_mut()).zip(&again) {
-        let Some(plan) = plan else { continue };
-        let analysis = analyse(mesh, &analysis_options);
-        let findings = rules::check(&analysis, &MeshFacts::of(mesh), &settings.severities);
-        let status = if mesh.triangles.is_empty() {
-            Status::Empty
-        } else {
-            Status::of(&findings)
-        };
-        outcome.row.repaired_path = repaired_path.clone();
-        outcome.row.repairs = plan.summary();
-        outcome.row.status_after = status.to_string();
-        outcome.row.findings_after = crate::report::findings_cell(&findings);
+    let after = plans
+        .iter()
+        .zip(&again)
+        .map(|(plan, mesh)| {
+            plan.as_ref().map(|_| {
+                let analysis = analyse(mesh, &analysis_options);
+                let findings = rules::check(&analysis, &MeshFacts::of(mesh), &settings.severities);
+                let status = if mesh.triangles.is_empty() {
+                    Status::Empty
+                } else {
+                    Status::of(&findings)
+                };
+                (status, findings)
+            })
+        })
+        .collect();
+    stage.commit(&written.files, folder)?;
+    Ok(Checked {
+        after,
+        notes: written.notes,
+    })
+}
+
+/// A private folder for one copy's files until they are checked; removed when dropped, with the
+/// folders made for it when nothing was committed (and they are empty).
+struct Stage {
+    path: PathBuf,
+    /// Folders above the stage that it created, deepest first.
+    created: Vec<PathBuf>,
+    committed: bool,
+}
+
+impl Stage {
+    fn new(folder: &Path) -> Result<Stage, String> {
+        static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let created: Vec<PathBuf> = folder
+            .ancestors()
+            .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+            .map(Path::to_path_buf)
+            .collect();
+        let path = folder.join(format!(
+            "{STAGE_PREFIX}{}-{}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        // Another file's failed repair may remove an empty folder between the two steps: retry.
+        let mut tries = 0;
+        loop {
+            let made = std::fs::create_dir_all(folder).and_then(|()| std::fs::create_dir(&path));
+            match made {
+                Ok(()) => break,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound && tries < 3 => tries += 1,
+                Err(e) => return Err(format!("cannot create {}: {e}", path.display())),
+            }
+        }
+        Ok(Stage {
+            path,
+            created,
+            committed: false,
+        })
     }
+
+    /// Moves `files` (the copy first, then its side files, all inside the stage) to the same
+    /// places under `folder`: side files first, the copy last, so a copy never refers to a side
+    /// file that is not there yet. A side file whose place already holds the same bytes (the
+    /// same library another copy brought, or the source's own file) is left alone. If a move
+    /// fails, the side files this call moved in are removed again, unless they were there before.
+    fn commit(&mut self, files: &[PathBuf], folder: &Path) -> Result<(), String> {
+        let places: Vec<(PathBuf, PathBuf)> = files
+            .iter()
+            .map(|f| {
+                f.strip_prefix(&self.path)
+                    .map(|rel| (f.clone(), folder.join(rel)))
+                    .map_err(|_| {
+                        format!(
+                            "the writer wrote {} outside the copy's folder (internal error: please report this file)",
+                            f.display()
+                        )
+                    })
+            })
+            .collect::<Result<_, _>>()?;
+        let mut moved: Vec<PathBuf> = Vec::new();
+        let undo = |moved: &[PathBuf]| {
+            for m in moved {
+                let _ = std::fs::remove_file(m);
+            }
+        };
+        let order = (1..places.len()).chain(0..places.len().min(1));
+        for i in order {
+            let (from, to) = &places[i];
+            let side = i > 0;
+            if side && !from.is_file() {
+                continue; // written twice under one name (listed twice)
+            }
+            let existed = to.exists();
+            if side && existed && std::fs::read(to).ok() == std::fs::read(from).ok() {
+                continue;
+            }
+            let result = to
+                .parent()
+                .map_or(Ok(()), std::fs::create_dir_all)
+                .and_then(|()| std::fs::rename(from, to));
+            if let Err(e) = result {
+                undo(&moved);
+                return Err(format!(
+                    "cannot move the copy into place at {}: {e}",
+                    to.display()
+                ));
+            }
+            if side && !existed {
+                moved.push(to.clone());
+            }
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Stage {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.path);
+        if !self.committed {
+            for d in &self.created {
+                if std::fs::remove_dir(d).is_err() {
+                    break; // not empty: another copy is there
+                }
+            }
+        }
+    }
+}
+
+/// Runs `work`, turning a panic into its message.
+fn caught<T>(work: impl FnOnce() -> T) -> Result<T, String> {
+    catch_unwind(AssertUnwindSafe(work)).map_err(|panic| {
+        panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic without a message".to_owned())
+    })
 }
 
 fn note(outcome: &mut Outcome, text: &str) {

@@ -4,23 +4,28 @@
 //!
 //! The result is a [`Plan`] in the input's own numbering: final triangles over input vertices (plus
 //! copies of input vertices made to split non-manifold vertices), each corner naming the input corner
-//! whose per-corner attributes it carries. Repairs run in SPEC order:
+//! whose per-corner attributes it carries. Repairs run in this order:
 //!
 //! 1. drop faces with invalid vertices, degenerate faces, and duplicate faces (the first copy stays);
 //! 2. split non-manifold edges (each keeps the two faces that agree best in orientation) and vertices
 //!    (one copy per extra fan, nudged a hair into its fan so welding does not merge it back);
 //! 3. orient every orientable component consistently, flipping the fewer faces;
-//! 4. flip closed shells whose volume sign is wrong for their nesting depth;
-//! 5. fill holes of at most `max_hole_edges` edges (ear clipping in the loop's best-fit plane), new
-//!    faces wound like their neighbours, their corners carrying the attributes of the border corners;
+//! 4. fill holes of at most `max_hole_edges` edges (ear clipping in the loop's best-fit plane, a fan
+//!    only for a loop convex in that plane; a loop where ear clipping finds no ear is left open),
+//!    new faces wound like their neighbours, their corners carrying the attributes of the border
+//!    corners;
+//! 5. flip closed shells whose volume sign is wrong for their nesting depth (after the fills, so a
+//!    shell a fill closed is judged too; SPEC 10 lists this before the fills, and the `repairs`
+//!    column keeps SPEC's order);
 //! 6. drop unreferenced vertices (the writer renumbers; [`Plan::used_vertices`] says which stay).
 
 use std::rc::Rc;
 
+use robust::{orient2d, Coord};
 use rustc_hash::FxHashMap;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::formats::polygon::triangulate;
+use crate::formats::polygon::{triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::{find, is_flat, union, vertex_order};
 use crate::topology::nesting::{depths, ShellGeometry};
@@ -235,6 +240,14 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
                 "{} hole{} left open: filling would overlap existing edges",
                 fill.blocked,
                 plural(fill.blocked)
+            ));
+        }
+        if fill.no_triangulation > 0 {
+            not_repairable.push(format!(
+                "{} hole{} left open: {} border crosses or folds onto itself, so a fill could overlap itself",
+                fill.no_triangulation,
+                plural(fill.no_triangulation),
+                if fill.no_triangulation == 1 { "its" } else { "their" }
             ));
         }
     }
@@ -471,9 +484,11 @@ impl<'a> Work<'a> {
     /// Splits non-manifold edges and vertices: each non-manifold edge keeps the two faces that
     /// traverse it in opposite directions (or its first two) and the others are cut loose; then every
     /// vertex whose faces form several fans gets a copy per extra fan. Repeats while cutting exposes
-    /// more (at most a few rounds). Returns `(edges, vertices)` split.
+    /// more (at most a few rounds). Returns `(edges, vertices)` split: the mesh's non-manifold
+    /// edges, and its vertices that got at least one copy (each counted once, however many copies
+    /// it got and in however many rounds).
     fn split_nonmanifold(&mut self, options: &Options) -> (usize, usize) {
-        let (mut edges, mut vertices) = (None, 0);
+        let mut edges = None;
         let nudge = self.nudge_distance(options.weld_tolerance);
         let mut last = usize::MAX;
         for _round in 0..8 {
@@ -485,7 +500,7 @@ impl<'a> Work<'a> {
             if cut > 0 && cut >= last {
                 // No progress: a cut face still shares a fan with the kept pair at both ends (the
                 // surface wraps onto itself). Detach such faces whole.
-                vertices += self.detach_cut_faces(table, index, nudge);
+                self.detach_cut_faces(table, index, nudge);
                 last = usize::MAX;
                 continue;
             }
@@ -502,13 +517,20 @@ impl<'a> Work<'a> {
             if cut == 0 && split == 0 {
                 break;
             }
-            vertices += split;
         }
-        (edges.unwrap_or(0), vertices)
+        let mut split: Vec<u32> = self.new_vertices.iter().map(|v| v.copy_of).collect();
+        // By welded vertex: an STL facet's three corners at one point are one vertex of the mesh.
+        for v in &mut split {
+            *v = self.welded.get(*v as usize).copied().unwrap_or(*v);
+        }
+        split.sort_unstable();
+        split.dedup();
+        (edges.unwrap_or(0), split.len())
     }
 
-    /// Gives every face on a non-manifold edge, but the pair kept there, its own three vertices.
-    fn detach_cut_faces(&mut self, table: &CornerTable, index: &[u32], nudge: f64) -> usize {
+    /// Gives every face on a non-manifold edge, but the pair kept there, its own three vertices
+    /// (where another corner still uses the vertex: a corner left alone keeps it).
+    fn detach_cut_faces(&mut self, table: &CornerTable, index: &[u32], nudge: f64) {
         let mut faces: Vec<u32> = Vec::new();
         for corners in table.nonmanifold_edges() {
             let pair = keep_pair(table, corners);
@@ -521,12 +543,21 @@ impl<'a> Work<'a> {
         }
         faces.sort_unstable();
         faces.dedup();
+        // Corners still on each welded vertex: a corner that is the last one left on its vertex
+        // is alone there already, so it keeps the vertex (a copy would split nothing).
+        let mut left = vec![0u32; table.vertex_count()];
+        for c in 0..table.corner_count() as u32 {
+            left[table.v(c) as usize] += 1;
+        }
         for &t in &faces {
-            for k in 0..3 {
-                self.detach_fan(table, index, &[3 * t + k], nudge);
+            for c in 3 * t..3 * t + 3 {
+                let v = table.v(c) as usize;
+                if left[v] > 1 {
+                    left[v] -= 1;
+                    self.detach_fan(table, index, &[c], nudge);
+                }
             }
         }
-        3 * faces.len()
     }
 
     /// How far a vertex copy moves into its fan: beyond the weld tolerance and beyond the rounding of
@@ -873,7 +904,16 @@ impl<'a> Work<'a> {
                 })
                 .collect();
             let mut tris = Vec::new();
-            triangulate(&ring, &self.points, &mut tris);
+            // A loop that does not cross itself in its plane is split by ear clipping that finds a
+            // proper ear at every step (or by a fan when it is convex): the fill cannot overlap
+            // itself. A loop that crosses or folds onto itself there, and one where ear clipping
+            // finds no ear (`triangulate` then falls back to a fan), could: left open.
+            if !simple_in_plane(&ring, &self.points)
+                || triangulate(&ring, &self.points, &mut tris) == Split::Fallback
+            {
+                fill.no_triangulation += 1;
+                continue;
+            }
             // A diagonal that is already an edge, or a face that is already there, would make the
             // surface non-manifold: such a hole is left open.
             let overlaps = tris.iter().any(|t| {
@@ -926,6 +966,82 @@ fn keep_pair(table: &CornerTable, corners: &[u32]) -> (u32, u32) {
         .unwrap_or((corners[0], corners[1]))
 }
 
+/// Whether the closed loop `ring` (indices into `points`), projected onto the coordinate plane
+/// most parallel to its best-fit plane (the largest component of its Newell normal, as the polygon
+/// splitter does), is a simple polygon: no two of its edges cross or touch except neighbours at
+/// their shared end, and no neighbours fold back onto each other. False for a loop with no plane
+/// (zero Newell normal) or a non-finite coordinate. O(n^2) for n edges (holes are small).
+fn simple_in_plane(ring: &[u32], points: &[[f64; 3]]) -> bool {
+    let n = ring.len();
+    let Some(p3): Option<Vec<[f64; 3]>> = ring
+        .iter()
+        .map(|&v| points.get(v as usize).copied())
+        .collect()
+    else {
+        return false;
+    };
+    if p3.iter().flatten().any(|x| !x.is_finite()) {
+        return false;
+    }
+    let mut normal = [0.0f64; 3];
+    for k in 0..n {
+        let (a, b) = (p3[k], p3[(k + 1) % n]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    let abs = normal.map(f64::abs);
+    if abs.iter().all(|&c| c == 0.0) || !abs.iter().all(|c| c.is_finite()) {
+        return false;
+    }
+    let axis = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+        0
+    } else if abs[1] >= abs[2] {
+        1
+    } else {
+        2
+    };
+    let (u, w) = [(1, 2), (2, 0), (0, 1)][axis];
+    let p: Vec<Coord<f64>> = p3.iter().map(|q| Coord { x: q[u], y: q[w] }).collect();
+    let on_segment = |a: Coord<f64>, b: Coord<f64>, c: Coord<f64>| {
+        c.x >= a.x.min(b.x) && c.x <= a.x.max(b.x) && c.y >= a.y.min(b.y) && c.y <= a.y.max(b.y)
+    };
+    // Whether segments ab and cd share a point.
+    let meet = |a: Coord<f64>, b: Coord<f64>, c: Coord<f64>, d: Coord<f64>| {
+        let (d1, d2) = (orient2d(a, b, c), orient2d(a, b, d));
+        let (d3, d4) = (orient2d(c, d, a), orient2d(c, d, b));
+        if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+            && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+        {
+            return true;
+        }
+        (d1 == 0.0 && on_segment(a, b, c))
+            || (d2 == 0.0 && on_segment(a, b, d))
+            || (d3 == 0.0 && on_segment(c, d, a))
+            || (d4 == 0.0 && on_segment(c, d, b))
+    };
+    for i in 0..n {
+        let (a, b) = (p[i], p[(i + 1) % n]);
+        // The next edge folds back along this one.
+        let c = p[(i + 2) % n];
+        if n > 2
+            && orient2d(a, b, c) == 0.0
+            && (c.x - b.x) * (a.x - b.x) + (c.y - b.y) * (a.y - b.y) > 0.0
+        {
+            return false;
+        }
+        for j in i + 2..n {
+            if i == 0 && j == n - 1 {
+                continue; // neighbours across the loop's start
+            }
+            if meet(a, b, p[j], p[(j + 1) % n]) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
 /// Whether `a` and `b` are neighbours on the ring (a loop edge, not a diagonal).
 fn ring_neighbours(ring: &[u32], a: u32, b: u32) -> bool {
     let n = ring.len();
@@ -941,6 +1057,8 @@ struct Fill {
     faces: usize,
     too_large: usize,
     blocked: usize,
+    /// Loops with no triangulation that is sure not to overlap itself.
+    no_triangulation: usize,
 }
 
 /// Component of every table triangle, numbered by lowest triangle, linked through edges of any

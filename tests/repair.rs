@@ -358,3 +358,173 @@ fn corpus_meshes_repair_cleanly_and_converge() {
     );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Two unit cubes on the edge x = y = 1, z in [0, 1] (A in [0,1]^2, B in [1,2]^2) and a
+/// triangular prism on the same edge in the free quadrant (base (1,1), (0.5,2), (0,1.5), area
+/// 0.375): the edge has 6 faces. The two endpoints of the edge are the only non-manifold
+/// vertices; each has three fans (one per shell), so each gets two copies (4 new vertices), but
+/// 2 vertices were split and the count says 2. Result: three closed shells, V = 8 + 8 + 6 = 22
+/// (18 before), volume 1 + 1 + 0.375 (less a hair for the nudged copies).
+#[test]
+fn each_split_vertex_counts_once_however_many_copies_it_gets() {
+    let a = shapes::cuboid([0.0; 3], [1.0; 3]);
+    let b = shapes::cuboid([1.0, 1.0, 0.0], [2.0, 2.0, 1.0]);
+    let c = prism(&[[1.0, 1.0], [0.5, 2.0], [0.0, 1.5]], 0.0, 1.0);
+    let mesh = shapes::merge(&[a, b, c]);
+    let before = analyse(&mesh, &Default::default());
+    assert_eq!(
+        (
+            before.nonmanifold_edges,
+            before.nonmanifold_vertices,
+            before.welded_vertices
+        ),
+        (1, 2, 18)
+    );
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(
+        p.summary(),
+        "split-non-manifold-edges:1;split-non-manifold-vertices:2"
+    );
+    assert_eq!(p.new_vertices.len(), 4);
+    assert_eq!((a.nonmanifold_edges, a.nonmanifold_vertices), (0, 0));
+    assert_eq!((a.shells.len(), a.welded_vertices), (3, 22));
+    assert!((a.volume().unwrap() - 2.375).abs() < 1e-3);
+}
+
+/// Three discs (fans around centres at z = 1, -1 and 0.5) glued along one triangle p q r, each
+/// of their 9 faces wound either way (all 512 choices): every spine edge has 3 faces. Where the
+/// kept pairs differ from edge to edge, a cut face stays in the kept pair's fan at both ends and
+/// is detached whole. Whatever the path, `split-non-manifold-vertices` is the number of vertices
+/// of the input that got a copy, counted from the output's geometry: an output vertex a hair
+/// (under 1e-3) from an input vertex is a copy of it. The old count (3 per detached face, one per
+/// copy) was larger whenever a vertex got two copies.
+#[test]
+fn split_count_is_the_number_of_vertices_that_got_copies() {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.3, 0.3, 1.0],
+        [0.3, 0.3, -1.0],
+        [0.3, 0.3, 0.5],
+    ];
+    let mut detached = 0;
+    for variant in 0..512u32 {
+        let mut triangles = Vec::new();
+        for d in 0..3u32 {
+            for (e, (x, y)) in [(0, 1), (1, 2), (2, 0)].into_iter().enumerate() {
+                let reversed = variant >> (3 * d as usize + e) & 1 == 1;
+                triangles.push(if reversed {
+                    [3 + d, y, x]
+                } else {
+                    [3 + d, x, y]
+                });
+            }
+        }
+        let mesh = Mesh::new(positions.clone(), triangles);
+        let p = plan(&mesh, &Options::default());
+        let out = p.apply(&mesh);
+        let a = analyse(&out, &Default::default());
+        assert_eq!(
+            (a.nonmanifold_edges, a.nonmanifold_vertices),
+            (0, 0),
+            "{variant}"
+        );
+        let mut copied: Vec<usize> = out
+            .positions
+            .iter()
+            .filter_map(|q| {
+                positions.iter().position(|o| {
+                    let d = (0..3).map(|k| (q[k] - o[k]).powi(2)).sum::<f64>().sqrt();
+                    d > 0.0 && d < 1e-3
+                })
+            })
+            .collect();
+        copied.sort_unstable();
+        copied.dedup();
+        assert_eq!(
+            count(&p, Kind::SplitNonManifoldVertices),
+            copied.len(),
+            "{variant}"
+        );
+        // A disc centre is a manifold vertex: it gets a copy only when a face is detached whole.
+        detached += usize::from(copied.iter().any(|&v| v >= 3));
+    }
+    assert!(detached > 0, "no variant went through the detaching path");
+}
+
+/// A cone over a loop of 7 points on the unit circle visited every third point (the star {7/3}):
+/// its one hole's border crosses itself in its plane, so ear clipping finds no ear and the fan it
+/// would fall back to overlaps itself. The fill is refused and the hole reported; the same for
+/// the pentagram {5/2}, whose points are lifted so the loop is not flat (its fill would overlap
+/// too). A simple concave loop (an arrow head of 4 points) is filled by ear clipping with 4 - 2 = 2
+/// faces.
+#[test]
+fn holes_whose_border_crosses_itself_are_not_filled() {
+    let cone = |angles: &[f64], lift: f64| {
+        let n = angles.len() as u32;
+        let mut positions: Vec<[f64; 3]> = angles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| [t.cos(), t.sin(), lift * i as f64])
+            .collect();
+        positions.push([0.0, 0.0, 1.0]);
+        let triangles = (0..n).map(|i| [n, i, (i + 1) % n]).collect();
+        Mesh::new(positions, triangles)
+    };
+    let tau = std::f64::consts::TAU;
+    let star = |n: usize, step: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| (i * step % n) as f64 * tau / n as f64)
+            .collect()
+    };
+    for (mesh, what) in [
+        (cone(&star(7, 3), 0.0), "{7/3}"),
+        (cone(&star(5, 2), 0.2), "{5/2}"),
+    ] {
+        let p = plan(&mesh, &Options::default());
+        assert!(!p.changes(), "{what}: {}", p.summary());
+        assert_eq!(
+            p.not_repairable,
+            vec!["1 hole left open: its border crosses or folds onto itself, so a fill could overlap itself"],
+            "{what}"
+        );
+        let a = analyse(&p.apply(&mesh), &Default::default());
+        assert_eq!(a.holes(), 1, "{what}");
+    }
+    // Arrow head: (2,0) tip, notch at (0.5,0), in the plane z = 0; the apex sits above it.
+    let arrow = [
+        [2.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.5, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+    ];
+    let mut positions: Vec<[f64; 3]> = arrow.to_vec();
+    positions.push([0.8, 0.0, 1.0]);
+    let mesh = Mesh::new(positions, vec![[4, 0, 1], [4, 1, 2], [4, 2, 3], [4, 3, 0]]);
+    let (p, _, a) = repaired(&mesh);
+    assert_eq!(p.summary(), "fill-holes:1(2 faces)");
+    assert_eq!((a.holes(), a.border_edges, a.shells.len()), (0, 0, 1));
+    assert!(a.shells[0].volume.unwrap() > 0.0);
+}
+
+/// A closed prism over the counter-clockwise polygon `base` (x, y) from z = `z0` to `z1`, wound
+/// outward.
+fn prism(base: &[[f64; 2]], z0: f64, z1: f64) -> Mesh {
+    let n = base.len() as u32;
+    let mut positions = Vec::new();
+    for z in [z0, z1] {
+        positions.extend(base.iter().map(|p| [p[0], p[1], z]));
+    }
+    let mut triangles = Vec::new();
+    for k in 1..n - 1 {
+        triangles.push([0, k + 1, k]); // bottom, seen from below
+        triangles.push([n, n + k, n + k + 1]); // top
+    }
+    for k in 0..n {
+        let j = (k + 1) % n;
+        triangles.push([k, j, n + j]);
+        triangles.push([k, n + j, n + k]);
+    }
+    Mesh::new(positions, triangles)
+}

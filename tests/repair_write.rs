@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 
-use meshvet::formats::write::write_repaired;
+use meshvet::formats::write::{write_copy, write_repaired};
 use meshvet::formats::{read, Format, Limits, ReadContext};
 use meshvet::repair::{Corner, Kind, NewVertex, Plan, Triangle};
 use meshvet::Mesh;
@@ -1138,4 +1138,431 @@ fn scan_writes_repaired_copies_and_rechecks_them() {
         std::fs::read_dir(dir.path().join("twice")).unwrap().count(),
         0
     );
+}
+
+// ---- PLY elements beyond vertex and face ----------------------------------------------------
+
+/// The unit cube's six quads as PLY face lines, vertex numbers shifted by `shift`.
+fn ply_cube_faces(shift: u32) -> String {
+    QUADS
+        .iter()
+        .map(|q| {
+            let v: Vec<String> = q.iter().map(|v| (v + shift).to_string()).collect();
+            format!("4 {}\n", v.join(" "))
+        })
+        .collect()
+}
+
+/// Vertex 0 (9 9 9) is used by no face, so the repair drops it and every cube vertex moves down
+/// by one. The `edge` element's `vertex1`/`vertex2` follow: edge 1-2 becomes 0-1, edge 7-8
+/// becomes 6-7, and edge 0-4 names the dropped vertex, so it is left out (said in a note). The
+/// `material` element's integer `id` may number anything: left out, said in a note. The
+/// `camera` element has only floats: copied as it was.
+#[test]
+fn ply_edges_follow_the_renumbered_vertices_and_unknown_elements_are_left_out() {
+    let (_dir, src, out) = dirs();
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 9\nproperty float x\nproperty float y\nproperty float z\n\
+         element face 6\nproperty list uchar int vertex_indices\n\
+         element edge 3\nproperty int vertex1\nproperty int vertex2\nproperty uchar red\n\
+         element material 1\nproperty int id\nproperty float shine\n\
+         element camera 1\nproperty float view_px\nproperty float view_py\nend_header\n9 9 9\n",
+    );
+    for p in CUBE {
+        ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    ply += &ply_cube_faces(1);
+    ply += "1 2 255\n0 4 128\n7 8 64\n5 0.5\n1.5 2.5\n";
+    std::fs::write(src.join("cube.ply"), &ply).unwrap();
+    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    assert_eq!(plan.summary(), "drop-unreferenced-vertices:1");
+    let copy = out.join("cube.ply");
+    let written = write_copy(
+        &src.join("cube.ply"),
+        Format::Ply,
+        &[Some(plan)],
+        &copy,
+        &cx(&src),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&copy).unwrap();
+    let (header, body) = text.split_once("end_header\n").unwrap();
+    assert!(header.contains("element vertex 8\n"), "{header}");
+    assert!(header.contains("element edge 2\n"), "{header}");
+    assert!(
+        !header.contains("material") && !header.contains("property int id"),
+        "{header}"
+    );
+    assert!(
+        header.contains("element camera 1\nproperty float view_px\n"),
+        "{header}"
+    );
+    let lines: Vec<&str> = body.lines().collect();
+    assert_eq!(lines.len(), 8 + 6 + 2 + 1, "{body}");
+    assert_eq!(lines[0], "0 0 0");
+    assert_eq!(&lines[14..], ["0 1 255", "6 7 64", "1.5 2.5"], "{body}");
+    assert_eq!(written.notes.len(), 2, "{:?}", written.notes);
+    assert!(
+        written.notes[0].contains("`edge`: 1 record left out"),
+        "{:?}",
+        written.notes
+    );
+    assert!(
+        written.notes[1].contains("`material` left out"),
+        "{:?}",
+        written.notes
+    );
+    // The copy is the clean cube, and repairing it again changes nothing.
+    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
+    assert_eq!(again.positions.len(), 8);
+    assert!(!meshvet::repair::plan(&again, &Default::default()).changes());
+}
+
+/// Header lines whose words are separated by runs of spaces and tabs still get their new counts
+/// (the header text is also checked on its own in `formats::write::ply`'s unit test).
+#[test]
+fn ply_header_with_runs_of_spaces_and_tabs_gets_new_counts() {
+    let (_dir, src, out) = dirs();
+    let mut ply = String::from(
+        "ply\nformat  ascii\t1.0\nelement   vertex\t9\nproperty float x\nproperty\tfloat y\n\
+         property float   z\nelement\tface  6\nproperty list uchar int vertex_indices\nend_header\n9 9 9\n",
+    );
+    for p in CUBE {
+        ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    ply += &ply_cube_faces(1);
+    std::fs::write(src.join("cube.ply"), &ply).unwrap();
+    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    let copy = out.join("cube.ply");
+    round_trip(&src.join("cube.ply"), Format::Ply, &[Some(plan)], &copy);
+    let text = std::fs::read_to_string(&copy).unwrap();
+    let header = text.split("end_header").next().unwrap();
+    let counts: Vec<&str> = header
+        .lines()
+        .filter(|l| l.split_whitespace().next() == Some("element"))
+        .collect();
+    assert_eq!(counts.len(), 2, "{header}");
+    assert_eq!(
+        counts[0].split_whitespace().collect::<Vec<_>>(),
+        ["element", "vertex", "8"]
+    );
+    assert_eq!(
+        counts[1].split_whitespace().collect::<Vec<_>>(),
+        ["element", "face", "6"]
+    );
+}
+
+/// Per-corner `texcoord` lists (two values a corner, `[quad, corner]`) on every quad but quad 4,
+/// which has an empty list. Triangle 8 (quad 4's first, vertices 0 4 7) is dropped and added back
+/// as a fill near triangle 4 (quad 2: vertices 0 1 5 4): the fill's record is quad 2's, and its
+/// corners come from quad 4, which has no values. Each corner then takes quad 2's values at the
+/// same vertex (vertex 0: corner 0 -> `2 0`; vertex 4: corner 3 -> `2 3`), or zeros where quad 2
+/// has none (vertex 7): the list says 6 values and holds 6, in every encoding.
+#[test]
+fn ply_fill_corner_from_a_face_without_the_list_keeps_the_record_aligned() {
+    for encoding in ["ascii", "binary_little_endian", "binary_big_endian"] {
+        let (_dir, src, out) = dirs();
+        let big = encoding == "binary_big_endian";
+        let mut bytes = format!(
+            "ply\nformat {encoding} 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 6\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n"
+        )
+        .into_bytes();
+        let put = |b: &mut Vec<u8>, le: &[u8]| {
+            if big {
+                b.extend(le.iter().rev());
+            } else {
+                b.extend_from_slice(le);
+            }
+        };
+        for p in CUBE {
+            if encoding == "ascii" {
+                bytes.extend(format!("{} {} {}\n", p[0], p[1], p[2]).bytes());
+            } else {
+                for x in p {
+                    put(&mut bytes, &(x as f32).to_le_bytes());
+                }
+            }
+        }
+        for (f, q) in QUADS.iter().enumerate() {
+            let uv: Vec<f32> = if f == 4 {
+                Vec::new()
+            } else {
+                (0..4).flat_map(|k| [f as f32, k as f32]).collect()
+            };
+            if encoding == "ascii" {
+                let uv: Vec<String> = uv.iter().map(|x| x.to_string()).collect();
+                bytes.extend(
+                    format!(
+                        "4 {} {} {} {} {} {}\n",
+                        q[0],
+                        q[1],
+                        q[2],
+                        q[3],
+                        uv.len(),
+                        uv.join(" ")
+                    )
+                    .bytes(),
+                );
+            } else {
+                bytes.push(4);
+                for v in q {
+                    put(&mut bytes, &(*v as i32).to_le_bytes());
+                }
+                bytes.push(uv.len() as u8);
+                for x in uv {
+                    put(&mut bytes, &x.to_le_bytes());
+                }
+            }
+        }
+        std::fs::write(src.join("cube.ply"), &bytes).unwrap();
+        let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
+            .unwrap()
+            .remove(0);
+        assert_eq!(mesh.triangles[8], [0, 4, 7]);
+        let mut plan = identity(&mesh);
+        let mut fill = plan.triangles.remove(8);
+        fill.source = None;
+        fill.near = 4;
+        plan.triangles.push(fill);
+        plan.done = vec![(Kind::FillHoles, 1, None)];
+        let copy = out.join("cube.ply");
+        round_trip(&src.join("cube.ply"), Format::Ply, &[Some(plan)], &copy);
+        let bytes = std::fs::read(&copy).unwrap();
+        let at = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap()
+            + 11;
+        if encoding == "ascii" {
+            let body = String::from_utf8_lossy(&bytes[at..]).into_owned();
+            let faces: Vec<&str> = body.lines().skip(8).collect();
+            assert_eq!(faces.last(), Some(&"3 0 4 7 6 2 0 2 3 0 0"), "{body}");
+            // Quad 4's other triangle keeps its own (empty) list.
+            assert!(faces.contains(&"3 0 7 3 0"), "{body}");
+        } else {
+            // 8 vertices of 12 bytes, 5 whole quads (1 + 16 + 1 + 32 bytes), quad 4's other
+            // triangle (1 + 12 + 1) and the fill (1 + 12 + 1 + 24): nothing more, nothing less.
+            assert_eq!(bytes.len() - at, 8 * 12 + 5 * 50 + 14 + 38);
+            let fill = &bytes[bytes.len() - 38..];
+            let f = |k: usize| {
+                let mut b: [u8; 4] = fill[14 + 4 * k..18 + 4 * k].try_into().unwrap();
+                if big {
+                    b.reverse();
+                }
+                f32::from_le_bytes(b)
+            };
+            assert_eq!(fill[13], 6);
+            assert_eq!(
+                (0..6).map(f).collect::<Vec<_>>(),
+                [2.0, 0.0, 2.0, 3.0, 0.0, 0.0]
+            );
+        }
+    }
+}
+
+// ---- failures inside the repair of one file ---------------------------------------------------
+
+/// The crate of `sample_assets/props` (a textured unit cube in quads, with its .mtl and .png), one
+/// quad stored backwards so it needs `orient-faces`, in `src/props`; returns the source entry,
+/// the meshes and the scan rows of it (no repair yet).
+fn damaged_crate(
+    src: &Path,
+    settings: &meshvet::config::Settings,
+) -> (
+    meshvet::walk::Source,
+    Vec<Mesh>,
+    Vec<meshvet::scan::Outcome>,
+) {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets/props");
+    let text = std::fs::read_to_string(assets.join("crate.obj")).unwrap();
+    let text = text.replace("f 1/1/3 2/2/3 6/3/3 5/4/3", "f 5/4/3 6/3/3 2/2/3 1/1/3");
+    std::fs::create_dir_all(src.join("props")).unwrap();
+    std::fs::write(src.join("props/crate.obj"), text).unwrap();
+    for f in ["crate.mtl", "crate.png"] {
+        std::fs::copy(assets.join(f), src.join("props").join(f)).unwrap();
+    }
+    let source = meshvet::walk::walk(&[src.to_path_buf()], &meshvet::walk::Filter::everything())
+        .into_iter()
+        .find(|s| s.display == "props/crate.obj")
+        .unwrap();
+    let outcomes = meshvet::scan::scan_file(&source, settings);
+    let c = ReadContext {
+        root: src.to_path_buf(),
+        limits: settings.limits.clone(),
+    };
+    let meshes = read(&source.path, Format::Obj, &c).unwrap();
+    assert_eq!(outcomes.len(), 1);
+    assert!(!outcomes[0].findings.is_empty(), "{:?}", outcomes[0].row);
+    (source, meshes, outcomes)
+}
+
+/// Every file under `dir` (none for a missing folder).
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    walkdir::WalkDir::new(dir)
+        .into_iter()
+        .flatten()
+        .filter(|e| e.file_type().is_file())
+        .map(|e| e.path().to_path_buf())
+        .collect()
+}
+
+/// Runs `copies::repair_file_with` on the damaged crate with `planner` and returns the rows
+/// before and after.
+fn repair_crate_with(
+    settings: &meshvet::config::Settings,
+    planner: &dyn Fn(&Mesh, &meshvet::repair::Options) -> Plan,
+) -> (
+    tempfile::TempDir,
+    meshvet::report::Row,
+    meshvet::report::Row,
+) {
+    let (dir, src, out) = dirs();
+    let (source, meshes, mut outcomes) = damaged_crate(&src, settings);
+    let before = outcomes[0].row.clone();
+    let hashes = hash_tree(&src);
+    let c = ReadContext {
+        root: src.clone(),
+        limits: settings.limits.clone(),
+    };
+    meshvet::copies::repair_file_with(
+        &out,
+        &source.display,
+        &source.path,
+        Format::Obj,
+        &c,
+        &meshes,
+        &mut outcomes,
+        settings,
+        planner,
+    );
+    assert_eq!(hashes, hash_tree(&src), "the source tree changed");
+    assert_eq!(outcomes.len(), 1);
+    assert_eq!(
+        files_under(&out),
+        Vec::<PathBuf>::new(),
+        "nothing is left in the output folder"
+    );
+    // Not even the staging folder or the folders made for it (`out`, `out/props`).
+    assert!(!out.exists(), "{} is left", out.display());
+    let after = outcomes.remove(0).row;
+    (dir, before, after)
+}
+
+/// The row as it was but for the message, which gets `note` appended.
+fn assert_kept_with_note(before: &meshvet::report::Row, after: &meshvet::report::Row, note: &str) {
+    let mut expected = before.clone();
+    expected.message = format!("{}; {note}", before.message);
+    let mut got = after.clone();
+    got.millis = expected.millis;
+    assert_eq!(got, expected);
+}
+
+/// A panic in the planner becomes a note on the mesh's row; the scan row is kept as it was (no
+/// "internal error" row) and nothing is written.
+#[test]
+fn a_panicking_planner_costs_the_copy_not_the_scan_row() {
+    let settings = meshvet::config::Settings::default();
+    let (_dir, before, after) = repair_crate_with(&settings, &|_, _| panic!("planner boom"));
+    assert_kept_with_note(
+        &before,
+        &after,
+        "repair failed: the repair planner crashed (planner boom) - no copy written, the source is untouched",
+    );
+}
+
+/// A plan naming a vertex the mesh does not have makes the OBJ writer index out of range: the
+/// panic is caught in `copies`, the row is kept with a note, and the half-staged copy, its .mtl
+/// and texture are removed.
+#[test]
+fn a_crashing_writer_costs_the_copy_not_the_scan_row() {
+    let settings = meshvet::config::Settings::default();
+    let planner = |m: &Mesh, o: &meshvet::repair::Options| {
+        let mut p = meshvet::repair::plan(m, o);
+        p.triangles[0].corners[0].vertex = 1_000_000;
+        p
+    };
+    let (_dir, before, after) = repair_crate_with(&settings, &planner);
+    assert!(
+        after.message.contains("repair failed: internal error ("),
+        "{}",
+        after.message
+    );
+    assert!(after
+        .message
+        .ends_with(" - no copy written, the source is untouched"));
+    assert_eq!(after.repaired_path, "");
+    assert_eq!(after.findings, before.findings);
+    assert_eq!(after.status, before.status);
+}
+
+/// A copy that is written but cannot be read back (here: the plan doubles every face, and the
+/// copy's 24 triangles are over `limits.max_triangles = 12`, which the 12-triangle source is not)
+/// is removed with its .mtl and texture: no file is left, `repaired_path` stays empty and the
+/// message says why.
+#[test]
+fn a_copy_that_cannot_be_read_back_is_removed_with_its_side_files() {
+    let mut settings = meshvet::config::Settings::default();
+    settings.limits.max_triangles = 12;
+    let planner = |m: &Mesh, o: &meshvet::repair::Options| {
+        let mut p = meshvet::repair::plan(m, o);
+        let twice = p.triangles.clone();
+        p.triangles.extend(twice);
+        p
+    };
+    let (_dir, before, after) = repair_crate_with(&settings, &planner);
+    assert!(
+        after
+            .message
+            .contains("repair failed: the copy cannot be read: "),
+        "{}",
+        after.message
+    );
+    assert!(after
+        .message
+        .ends_with(" - no copy written, the source is untouched"));
+    assert_eq!(
+        (after.repaired_path.as_str(), after.repairs.as_str()),
+        ("", "")
+    );
+    assert_eq!(after.status, before.status);
+}
+
+/// The same crate with the real planner: the copy, its .mtl and texture are in place (and no
+/// staging folder is left), and the row says what was done.
+#[test]
+fn the_real_planner_puts_the_copy_and_its_side_files_in_place() {
+    let (_dir, src, out) = dirs();
+    let settings = meshvet::config::Settings::default();
+    let (source, meshes, mut outcomes) = damaged_crate(&src, &settings);
+    let c = cx(&src);
+    meshvet::copies::repair_file(
+        &out,
+        &source.display,
+        &source.path,
+        Format::Obj,
+        &c,
+        &meshes,
+        &mut outcomes,
+        &settings,
+    );
+    let row = &outcomes[0].row;
+    assert_eq!(row.repairs, "orient-faces:2", "{row:?}");
+    assert_eq!(row.status_after, "pass");
+    assert_eq!(
+        PathBuf::from(&row.repaired_path),
+        out.join("props/crate.obj")
+    );
+    let mut names: Vec<String> = std::fs::read_dir(out.join("props"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["crate.mtl", "crate.obj", "crate.png"]);
 }

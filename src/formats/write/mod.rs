@@ -46,6 +46,14 @@ impl From<std::io::Error> for WriteError {
     }
 }
 
+/// What writing a copy did: every file written (the copy first), and notes for the row's message
+/// about what the copy could not keep (a PLY element whose vertex references are unknown).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Written {
+    pub files: Vec<PathBuf>,
+    pub notes: Vec<String>,
+}
+
 /// Writes the repaired copy of `source` to `out`: `plans` has one entry per mesh the reader
 /// returns (`None`: that mesh is left as it is). Files the copy needs beside it (an OBJ's `.mtl`
 /// and textures, a glTF's buffers and images) are written next to it. Returns every file written,
@@ -57,6 +65,18 @@ pub fn write_repaired(
     out: &Path,
     cx: &ReadContext,
 ) -> Result<Vec<PathBuf>, WriteError> {
+    write_copy(source, format, plans, out, cx).map(|w| w.files)
+}
+
+/// [`write_repaired`], with the writer's notes. Every file it writes is `out` or lies in `out`'s
+/// folder or below it.
+pub fn write_copy(
+    source: &Path,
+    format: Format,
+    plans: &[Option<Plan>],
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<Written, WriteError> {
     let same = match (source.canonicalize(), out.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
@@ -82,13 +102,18 @@ pub fn write_repaired(
             ))),
         }
     };
-    let mut written = vec![out.to_path_buf()];
+    let mut written = Written {
+        files: vec![out.to_path_buf()],
+        notes: Vec::new(),
+    };
     match format {
-        Format::Obj => written.extend(obj::write(source, single()?, out, cx)?),
+        Format::Obj => written
+            .files
+            .extend(obj::write(source, single()?, out, cx)?),
         Format::Stl => stl::write(source, single()?, out, cx)?,
-        Format::Ply => ply::write(source, single()?, out, cx)?,
+        Format::Ply => written.notes = ply::write(source, single()?, out, cx)?,
         Format::Off => off::write(source, single()?, out, cx)?,
-        Format::Gltf | Format::Glb => written.extend(gltf::write(source, plans, out, cx)?),
+        Format::Gltf | Format::Glb => written.files.extend(gltf::write(source, plans, out, cx)?),
     }
     Ok(written)
 }

@@ -2,8 +2,17 @@
 //! `obj_info` kept, element counts updated), every vertex and face property kept. A vertex copy
 //! duplicates its vertex's properties at the new position; a face keeps its own properties, a
 //! hole fill takes its neighbour's; per-corner face lists (`texcoord` with 2 values a corner)
-//! follow their corners. Normals (`nx ny nz`) that disagree with a flipped face are negated.
-//! Other elements are copied unchanged.
+//! follow their corners (a fill's corner taken from a face without such a list gets the values of
+//! its own face's corner at the same vertex, else zeros, so every record keeps its length). Normals
+//! (`nx ny nz`) that disagree with a flipped face are negated.
+//!
+//! Other elements: one that names vertices by a recognised property (integer scalars `vertex`,
+//! `vertex1`, `vertex2`, ..., `vertex_index`, `vertex_id`; integer lists `vertex_indices`,
+//! `vertex_index`, `vertex_list`, as in the standard `edge` element) has those indices renumbered
+//! like the vertices, and a record naming a dropped or missing vertex is left out. One with no
+//! integer property at all cannot number anything and is copied unchanged. Any other (integers of
+//! unknown meaning, which may number vertices or faces the repair renumbered) is left out of the
+//! copy, and so is an element without properties; each of these is said in a note.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -28,7 +37,13 @@ impl Element {
     }
 }
 
-pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
+/// Writes the copy; returns notes on what it could not keep (elements left out, records dropped).
+pub fn write(
+    source: &Path,
+    plan: &Plan,
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<Vec<String>, WriteError> {
     let bytes = std::fs::read(source)?;
     let mesh = read(source, Format::Ply, cx)?
         .pop()
@@ -68,8 +83,20 @@ pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result
     let sums = normal_sums(plan, &mesh, |c| Some(c.vertex));
 
     let mut body = Body::new(header.encoding);
-    let mut counts: Vec<(String, usize)> = Vec::new();
+    // Each element's new count; `None`: left out of the copy.
+    let mut counts: Vec<(String, Option<usize>)> = Vec::new();
+    let mut notes = Vec::new();
     for e in &elements {
+        if e.def.properties.is_empty() {
+            if e.def.count > 0 {
+                notes.push(format!(
+                    "PLY element `{}` has no properties (no data): left out of the copy",
+                    e.def.name
+                ));
+            }
+            counts.push((e.def.name.clone(), None));
+            continue;
+        }
         match e.def.name.as_str() {
             "vertex" => {
                 let xyz = ["x", "y", "z"].map(|k| slot_of(e, k));
@@ -100,7 +127,7 @@ pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result
                     }
                     body.record(&e.def, &record);
                 }
-                counts.push((e.def.name.clone(), kept));
+                counts.push((e.def.name.clone(), Some(kept)));
             }
             "face" => {
                 let slot = index_slot(e).unwrap_or(0);
@@ -127,29 +154,133 @@ pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result
                             (face, corners, vertices)
                         }
                     };
+                    let origins: Vec<u32> = vertices
+                        .iter()
+                        .map(|&v| super::original(plan, &mesh, v))
+                        .collect();
                     let record = face_record(
-                        e, face, slot, &corners, &vertices, &index, item, plan, &polygons,
+                        e, face, slot, &corners, &vertices, &origins, &index, item, plan, &polygons,
                     );
                     body.record(&e.def, &record);
                 }
-                counts.push((e.def.name.clone(), items.len()));
+                counts.push((e.def.name.clone(), Some(items.len())));
             }
-            _ => {
-                for i in 0..e.def.count {
-                    body.record(&e.def, e.record(i));
+            _ => match vertex_references(e) {
+                References::None => {
+                    for i in 0..e.def.count {
+                        body.record(&e.def, e.record(i));
+                    }
+                    counts.push((e.def.name.clone(), Some(e.def.count)));
                 }
-                counts.push((e.def.name.clone(), e.def.count));
-            }
+                References::Known(slots) => {
+                    let mut kept = 0;
+                    'records: for i in 0..e.def.count {
+                        let mut record = e.record(i).to_vec();
+                        for &(slot, is_list) in &slots {
+                            let at = scalar_at(e, &record, slot);
+                            let range = if is_list {
+                                at + 1..at + 1 + record[at] as usize
+                            } else {
+                                at..at + 1
+                            };
+                            for value in &mut record[range] {
+                                match renumbered(*value, mesh.positions.len(), &index) {
+                                    Some(new) => *value = new as f64,
+                                    None => continue 'records,
+                                }
+                            }
+                        }
+                        body.record(&e.def, &record);
+                        kept += 1;
+                    }
+                    if kept < e.def.count {
+                        let n = e.def.count - kept;
+                        notes.push(format!(
+                            "PLY element `{}`: {n} record{} left out (they name a vertex the \
+                             repair dropped or that does not exist)",
+                            e.def.name,
+                            if n == 1 { "" } else { "s" }
+                        ));
+                    }
+                    counts.push((e.def.name.clone(), Some(kept)));
+                }
+                References::Unknown => {
+                    notes.push(format!(
+                        "PLY element `{}` left out of the copy: its integer properties may number \
+                         vertices or faces, which the repair renumbered",
+                        e.def.name
+                    ));
+                    counts.push((e.def.name.clone(), None));
+                }
+            },
         }
     }
 
     let mut out_bytes = rewrite_counts(&text, &counts).into_bytes();
     out_bytes.extend_from_slice(&body.bytes);
-    write_atomic(out, &out_bytes)
+    write_atomic(out, &out_bytes)?;
+    Ok(notes)
+}
+
+/// How an element other than `vertex` and `face` refers to vertices.
+enum References {
+    /// No integer property: it cannot number anything.
+    None,
+    /// These property slots (and whether each is a list) hold vertex indices.
+    Known(Vec<(usize, bool)>),
+    /// Integer properties of unknown meaning.
+    Unknown,
+}
+
+fn vertex_references(e: &Element) -> References {
+    let integer = |t: &ScalarType| !matches!(t, ScalarType::Float | ScalarType::Double);
+    let mut known = Vec::new();
+    let mut integers = false;
+    for (slot, (name, p)) in e.def.properties.iter().enumerate() {
+        let name = name.to_ascii_lowercase();
+        match &p.data_type {
+            PropertyType::Scalar(t) if integer(t) => {
+                integers = true;
+                let numbered = name
+                    .strip_prefix("vertex")
+                    .is_some_and(|rest| rest.bytes().all(|b| b.is_ascii_digit()));
+                if numbered || name == "vertex_index" || name == "vertex_id" {
+                    known.push((slot, false));
+                }
+            }
+            PropertyType::List(_, t) if integer(t) => {
+                integers = true;
+                if matches!(
+                    name.as_str(),
+                    "vertex_indices" | "vertex_index" | "vertex_list"
+                ) {
+                    known.push((slot, true));
+                }
+            }
+            _ => {}
+        }
+    }
+    match (known.is_empty(), integers) {
+        (false, _) => References::Known(known),
+        (true, false) => References::None,
+        (true, true) => References::Unknown,
+    }
+}
+
+/// The new number of input vertex `value` (`None`: not a vertex of the input, or dropped).
+fn renumbered(value: f64, inputs: usize, index: &[u32]) -> Option<u32> {
+    if !(value >= 0.0 && value < inputs as f64 && value.fract() == 0.0) {
+        return None;
+    }
+    index
+        .get(value as usize)
+        .copied()
+        .filter(|&n| n != u32::MAX)
 }
 
 /// A face record: the properties of source face `face` with the index list replaced by
-/// `vertices` (renumbered) and per-corner lists reordered by `corners`.
+/// `vertices` (renumbered) and per-corner lists reordered by `corners`. `origins` are the input
+/// vertices the output corners carry (for a fill corner whose source face has no such list).
 #[allow(clippy::too_many_arguments)]
 fn face_record(
     e: &Element,
@@ -157,16 +288,18 @@ fn face_record(
     slot: usize,
     corners: &[usize],
     vertices: &[u32],
+    origins: &[u32],
     index: &[u32],
     item: &Item,
     plan: &Plan,
     polygons: &Polygons,
 ) -> Vec<f64> {
     let source = e.record(face);
-    let n_source = list(e, face, slot).len();
+    let own_vertices = list(e, face, slot);
+    let n_source = own_vertices.len();
     let mut out = Vec::with_capacity(source.len());
     let mut at = 0;
-    for (k, (_, p)) in e.def.properties.iter().enumerate() {
+    for (k, (name, p)) in e.def.properties.iter().enumerate() {
         match p.data_type {
             PropertyType::Scalar(_) => {
                 out.push(source[at]);
@@ -181,29 +314,35 @@ fn face_record(
                     out.extend(vertices.iter().map(|&v| index[v as usize] as f64));
                 } else if n_source > 0 && len > 0 && len % n_source == 0 {
                     // Per-corner values: each output corner takes its own corner's values (a
-                    // fill's corner, those of the neighbour face it came from).
+                    // fill's corner, those of the neighbour face it came from). Exactly `stride`
+                    // values go out per corner, so the record keeps the length it states.
                     let stride = len / n_source;
+                    let own = |c: usize| &items[stride * c..stride * (c + 1)];
                     out.push((stride * corners.len()) as f64);
                     for (j, &c) in corners.iter().enumerate() {
-                        let values = match item {
+                        let from = match item {
                             Item::Triangle(i) => {
-                                let from = plan.triangles[*i].corners[j].from;
-                                let (f, k) = polygons.corner(from);
-                                if f == face {
-                                    &items[stride * c..stride * (c + 1)]
-                                } else {
-                                    let other = per_corner(e, f, k, slot);
-                                    out.extend_from_slice(
-                                        other
-                                            .get(p.name.as_str())
-                                            .map_or(&[][..], |v| v.as_slice()),
-                                    );
-                                    continue;
+                                Some(polygons.corner(plan.triangles[*i].corners[j].from))
+                            }
+                            Item::Polygon { .. } => None,
+                        };
+                        match from {
+                            Some((f, k)) if f != face => {
+                                let other = per_corner(e, f, k, slot);
+                                match other.get(name.as_str()).filter(|v| v.len() == stride) {
+                                    Some(values) => out.extend_from_slice(values),
+                                    // That face has no such list: this face's corner at the same
+                                    // vertex, or zeros when it has none there.
+                                    None => {
+                                        match own_vertices.iter().position(|&v| v == origins[j]) {
+                                            Some(c) => out.extend_from_slice(own(c)),
+                                            None => out.extend(std::iter::repeat_n(0.0, stride)),
+                                        }
+                                    }
                                 }
                             }
-                            Item::Polygon { .. } => &items[stride * c..stride * (c + 1)],
-                        };
-                        out.extend_from_slice(values);
+                            _ => out.extend_from_slice(own(c)),
+                        }
                     }
                 } else {
                     out.push(len as f64);
@@ -274,16 +413,30 @@ fn scalar_at(e: &Element, record: &[f64], slot: usize) -> usize {
     at
 }
 
-/// The header text with each element's count replaced.
-fn rewrite_counts(header: &str, counts: &[(String, usize)]) -> String {
+/// The header text with each element's count replaced, and the elements counted `None` (with
+/// their property lines) left out. Words may be separated by any run of whitespace.
+fn rewrite_counts(header: &str, counts: &[(String, Option<usize>)]) -> String {
     let mut out = String::with_capacity(header.len() + 16);
+    let mut skipping = false;
     for line in header.lines() {
-        let words: Vec<&str> = line.split(' ').collect();
-        if words.len() == 3 && words[0] == "element" {
-            if let Some((_, n)) = counts.iter().find(|(name, _)| name == words[1]) {
-                let _ = writeln!(out, "element {} {n}", words[1]);
-                continue;
+        let words: Vec<&str> = line.split_whitespace().collect();
+        if words.first() == Some(&"element") {
+            skipping = false;
+            if words.len() == 3 {
+                if let Some((_, n)) = counts.iter().find(|(name, _)| name == words[1]) {
+                    match n {
+                        Some(n) => {
+                            let _ = writeln!(out, "element {} {n}", words[1]);
+                        }
+                        None => skipping = true,
+                    }
+                    continue;
+                }
             }
+        } else if words.first() == Some(&"end_header") {
+            skipping = false;
+        } else if skipping && words.first() == Some(&"property") {
+            continue;
         }
         out.push_str(line);
         out.push('\n');
@@ -303,7 +456,13 @@ fn parse_body(body: &[u8], header: &ply_rs_bw::ply::Header) -> Result<Vec<Elemen
             starts: vec![0],
             values: Vec::new(),
         };
-        for i in 0..def.count {
+        // An element without properties holds no bytes (however large its count): nothing to read.
+        let count = if def.properties.is_empty() {
+            0
+        } else {
+            def.count
+        };
+        for i in 0..count {
             reader.record(def, &mut e.values).ok_or_else(|| {
                 WriteError::new(format!("PLY {} {i} could not be read again", def.name))
             })?;
@@ -469,5 +628,29 @@ impl Body {
                 self.bytes.extend_from_slice(&b);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rewrite_counts;
+
+    /// Element lines with runs of spaces or tabs get their new count; a dropped element goes with
+    /// its property lines, and the lines around it stay.
+    #[test]
+    fn counts_are_rewritten_whatever_the_spacing() {
+        let header = "ply\nformat ascii 1.0\nelement  vertex\t9\nproperty float x\n\
+                      element\tedge   3\nproperty int vertex1\nproperty int vertex2\n\
+                      element face 6\nproperty list uchar int vertex_indices\nend_header\n";
+        let counts = [
+            ("vertex".to_owned(), Some(8)),
+            ("edge".to_owned(), None),
+            ("face".to_owned(), Some(7)),
+        ];
+        assert_eq!(
+            rewrite_counts(header, &counts),
+            "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\n\
+             element face 7\nproperty list uchar int vertex_indices\nend_header\n"
+        );
     }
 }

@@ -1,0 +1,786 @@
+//! `meshvet scan --repair-dir` end to end, proved through the written files: the binary runs on a
+//! temporary copy of `sample_assets` (plus a few damaged files built here, so that every format
+//! gets a repaired copy), then
+//! (a) the source tree is byte for byte what it was;
+//! (b) every copy is scanned again by the binary: the rules its repairs address are gone, what is
+//!     left was there before and is said to be not repairable in the message, and the row's
+//!     `status_after`/`findings_after` are what the re-scan finds;
+//! (c) hand-known results hold in the copies, read back through the loaders and analysed;
+//! (d) repairing the repaired tree writes no copy.
+//! A second test cuts a hole into textured glTF samples of `../shared/corpus` and repairs them.
+//!
+//! Every expected number comes from the construction: a unit cube has volume 1, the 2x2x2 block
+//! with a 1x1x1 void has 8 - 1 = 7, the 3x3x3 block with its 1x1x1 cavity 27 - 1 = 26, a
+//! tetrahedron on the unit axes 1/6, the 16-sided vase of radius 0.4 and height 1
+//! 8 * 0.4^2 * sin(pi/8).
+
+use std::collections::hash_map::DefaultHasher;
+use std::collections::{BTreeMap, BTreeSet};
+use std::hash::{Hash, Hasher};
+use std::path::Path;
+use std::process::Command;
+
+use meshvet::formats::{read, Format, ReadContext};
+use meshvet::{analyse, Analysis, Mesh, Role};
+use serde_json::{json, Value};
+
+type Row = BTreeMap<String, String>;
+
+/// Copies the tree `from` to `to` with std::fs.
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
+/// Every file under `dir` (relative, `/`-separated) with a hash of its bytes.
+fn hash_tree(dir: &Path) -> BTreeMap<String, u64> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&d) else {
+            continue;
+        };
+        for entry in entries {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let mut h = DefaultHasher::new();
+                std::fs::read(&path).unwrap().hash(&mut h);
+                let rel = path.strip_prefix(dir).unwrap().to_string_lossy();
+                out.insert(rel.replace('\\', "/"), h.finish());
+            }
+        }
+    }
+    out
+}
+
+/// Runs `meshvet scan ARGS --quiet` in `cwd`; the run must end normally (0: all pass, 1: findings).
+fn scan(cwd: &Path, args: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_meshvet"))
+        .arg("scan")
+        .args(args)
+        .arg("--quiet")
+        .current_dir(cwd)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.code().is_some_and(|c| c <= 1),
+        "meshvet scan {args:?}: {:?}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The CSV's rows by `path` and `mesh`.
+fn csv_rows(path: &Path) -> BTreeMap<(String, String), Row> {
+    let mut reader = csv::Reader::from_path(path).unwrap();
+    let header = reader.headers().unwrap().clone();
+    reader
+        .records()
+        .map(|r| {
+            let row: Row = header
+                .iter()
+                .zip(r.unwrap().iter())
+                .map(|(h, v)| (h.to_owned(), v.to_owned()))
+                .collect();
+            ((row["path"].clone(), row["mesh"].clone()), row)
+        })
+        .collect()
+}
+
+/// The rule names of a `findings` cell (`hole:1;mirrored-instance:1`).
+fn rules_of(cell: &str) -> BTreeSet<String> {
+    cell.split(';')
+        .filter(|s| !s.is_empty())
+        .map(|s| s.split(':').next().unwrap().to_owned())
+        .collect()
+}
+
+/// The rule each repair removes.
+const REPAIRED_RULE: [(&str, &str); 9] = [
+    ("drop-invalid-faces", "invalid-vertex"),
+    ("drop-degenerate-faces", "degenerate-face"),
+    ("drop-duplicate-faces", "duplicate-face"),
+    ("split-non-manifold-edges", "non-manifold-edge"),
+    ("split-non-manifold-vertices", "non-manifold-vertex"),
+    ("orient-faces", "inconsistent-winding"),
+    ("flip-inside-out-shells", "inside-out-shell"),
+    ("fill-holes", "hole"),
+    ("drop-unreferenced-vertices", "unreferenced-vertex"),
+];
+
+/// Rules a repair is meant to remove; one left in a copy must be said not repairable, in these
+/// words of the message.
+const REPAIRABLE: [(&str, &str); 9] = [
+    ("invalid-vertex", ""),
+    ("degenerate-face", ""),
+    ("duplicate-face", ""),
+    ("unreferenced-vertex", ""),
+    ("non-manifold-edge", ""),
+    ("non-manifold-vertex", ""),
+    ("inconsistent-winding", "non-orientable"),
+    ("inside-out-shell", ""),
+    ("hole", "hole"),
+];
+
+/// Reads a copy back through the loaders and analyses each mesh.
+fn analysed(path: &Path) -> Vec<(Mesh, Analysis)> {
+    let format = Format::of_path(path).unwrap();
+    let cx = ReadContext {
+        root: path.parent().unwrap().to_path_buf(),
+        limits: Default::default(),
+    };
+    read(path, format, &cx)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .into_iter()
+        .map(|m| {
+            let a = analyse(&m, &Default::default());
+            (m, a)
+        })
+        .collect()
+}
+
+fn close(a: f64, b: f64, tolerance: f64) -> bool {
+    (a - b).abs() <= tolerance
+}
+
+fn lines_with<'a>(text: &'a str, keyword: &str) -> Vec<&'a str> {
+    text.lines()
+        .filter(|l| l.split_whitespace().next() == Some(keyword))
+        .collect()
+}
+
+// ---- damaged files built for the formats the samples do not repair ---------------------------
+
+/// Unit cube corners and its six outward quads (counter-clockwise seen from outside); quad 1 is
+/// the top (z = 1).
+const CUBE: [[f32; 3]; 8] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 1.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [1.0, 0.0, 1.0],
+    [1.0, 1.0, 1.0],
+    [0.0, 1.0, 1.0],
+];
+const QUADS: [[u16; 4]; 6] = [
+    [0, 3, 2, 1],
+    [4, 5, 6, 7],
+    [0, 1, 5, 4],
+    [2, 3, 7, 6],
+    [0, 4, 7, 3],
+    [1, 2, 6, 5],
+];
+const NORMALS: [[f32; 3]; 6] = [
+    [0.0, 0.0, -1.0],
+    [0.0, 0.0, 1.0],
+    [0.0, -1.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [-1.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+];
+
+/// A binary PLY unit cube with a colour per vertex, its top quad missing: one hole of 4 edges.
+fn open_cube_ply() -> Vec<u8> {
+    let mut out = b"ply\nformat binary_little_endian 1.0\nelement vertex 8\nproperty float x\n\
+property float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+element face 5\nproperty list uchar int vertex_indices\nend_header\n"
+        .to_vec();
+    for (i, p) in CUBE.iter().enumerate() {
+        for x in p {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        out.extend_from_slice(&[30 * i as u8, 7, 200]);
+    }
+    for (f, q) in QUADS.iter().enumerate() {
+        if f == 1 {
+            continue;
+        }
+        out.push(4);
+        for &v in q {
+            out.extend_from_slice(&(v as i32).to_le_bytes());
+        }
+    }
+    out
+}
+
+/// A glTF box (one primitive, material 0 "paint", NORMAL and TEXCOORD_0, 4 vertices per side)
+/// with its top side missing (20 vertices, 10 triangles: one hole of 4 edges) and the first
+/// triangle of the bottom stored backwards. Returns the document and its binary buffer.
+fn open_box_gltf() -> (Value, Vec<u8>) {
+    let (mut idx, mut pos, mut nor, mut uv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut n = 0u16;
+    for (f, q) in QUADS.iter().enumerate() {
+        if f == 1 {
+            continue;
+        }
+        for (k, &v) in q.iter().enumerate() {
+            pos.extend(CUBE[v as usize]);
+            nor.extend(NORMALS[f]);
+            uv.extend([(k == 1 || k == 2) as u8 as f32, (k >= 2) as u8 as f32]);
+        }
+        idx.extend([n, n + 1, n + 2, n, n + 2, n + 3]);
+        n += 4;
+    }
+    idx.swap(1, 2);
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    for data in [
+        idx.iter()
+            .flat_map(|x| x.to_le_bytes())
+            .collect::<Vec<u8>>(),
+        pos.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        nor.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        uv.iter().flat_map(|x| x.to_le_bytes()).collect(),
+    ] {
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len()}));
+        bin.extend(data);
+    }
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": "meshvet test"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": "box"}],
+        "materials": [{"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.2, 1.0]}}],
+        "meshes": [{"name": "box", "primitives": [{
+            "attributes": {"POSITION": 1, "NORMAL": 2, "TEXCOORD_0": 3},
+            "indices": 0, "material": 0, "mode": 4}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5123, "count": idx.len(), "type": "SCALAR"},
+            {"bufferView": 1, "componentType": 5126, "count": 20, "type": "VEC3",
+             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 1.0]},
+            {"bufferView": 2, "componentType": 5126, "count": 20, "type": "VEC3"},
+            {"bufferView": 3, "componentType": 5126, "count": 20, "type": "VEC2"}
+        ],
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}]
+    });
+    (doc, bin)
+}
+
+fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(doc).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + json.len() + 8 + bin.len()) as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
+/// The JSON chunk of a GLB, or the whole file of a .gltf, parsed.
+fn document(bytes: &[u8]) -> Value {
+    if bytes.starts_with(b"glTF") {
+        let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+    } else {
+        serde_json::from_slice(bytes).unwrap()
+    }
+}
+
+/// Adds the damaged files to `tree` (a copy of sample_assets).
+fn add_damaged_files(tree: &Path) {
+    // The crate with its top quad (+y, `vn 5`) removed and its -y quad stored backwards.
+    let text = std::fs::read_to_string(tree.join("props/crate.obj")).unwrap();
+    assert!(text.contains("f 4/1/5 3/2/5 7/3/5 8/4/5\n"));
+    let text = text
+        .replace("f 4/1/5 3/2/5 7/3/5 8/4/5\n", "")
+        .replace("f 1/1/3 2/2/3 6/3/3 5/4/3", "f 5/4/3 6/3/3 2/2/3 1/1/3");
+    std::fs::write(tree.join("props/crate_open.obj"), text).unwrap();
+    // The cavity fixture with one triangle of the outer cube stored backwards.
+    let text = std::fs::read_to_string(tree.join("rules/cavity.obj")).unwrap();
+    assert!(text.contains("\nf 1 3 4\n"));
+    std::fs::create_dir_all(tree.join("extra")).unwrap();
+    std::fs::write(
+        tree.join("extra/cavity_flipped_side.obj"),
+        text.replace("\nf 1 3 4\n", "\nf 1 4 3\n"),
+    )
+    .unwrap();
+    std::fs::write(tree.join("extra/open_cube.ply"), open_cube_ply()).unwrap();
+    let (mut doc, bin) = open_box_gltf();
+    std::fs::write(tree.join("extra/open_box.glb"), glb(&doc, &bin)).unwrap();
+    doc["buffers"][0]["uri"] = json!("open_box.bin");
+    std::fs::write(tree.join("extra/open_box.bin"), &bin).unwrap();
+    std::fs::write(
+        tree.join("extra/open_box.gltf"),
+        serde_json::to_vec_pretty(&doc).unwrap(),
+    )
+    .unwrap();
+}
+
+#[test]
+fn repaired_copies_of_the_samples_are_proved_by_rescanning_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    copy_tree(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets"),
+        &tree,
+    );
+    add_damaged_files(&tree);
+    let before = hash_tree(&tree);
+
+    scan(
+        dir.path(),
+        &["tree", "--repair-dir", "out", "--csv", "r.csv"],
+    );
+    // (a) The sources are untouched.
+    assert_eq!(before, hash_tree(&tree), "the scanned tree changed");
+    let rows = csv_rows(&dir.path().join("r.csv"));
+    assert!(
+        rows.values().all(|r| r["status"] != "error"),
+        "{:?}",
+        rows.values()
+            .filter(|r| r["status"] == "error")
+            .collect::<Vec<_>>()
+    );
+    let out = dir.path().join("out");
+    let repaired: Vec<&Row> = rows
+        .values()
+        .filter(|r| !r["repaired_path"].is_empty())
+        .collect();
+    for r in &repaired {
+        assert_eq!(
+            Path::new(&r["repaired_path"]),
+            Path::new("out").join(&r["path"]),
+            "{r:?}"
+        );
+        assert!(!r["message"].contains("repair failed"), "{r:?}");
+    }
+    // Every format got at least one copy.
+    let formats: BTreeSet<&str> = repaired.iter().map(|r| r["format"].as_str()).collect();
+    assert_eq!(
+        formats,
+        BTreeSet::from(["glb", "gltf", "obj", "off", "ply", "stl"]),
+        "formats with a repaired copy"
+    );
+
+    // (b) Scan the copies again.
+    scan(dir.path(), &["out", "--csv", "again.csv"]);
+    let again = csv_rows(&dir.path().join("again.csv"));
+    for r in &repaired {
+        let key = (r["path"].clone(), r["mesh"].clone());
+        let copy = again
+            .get(&key)
+            .unwrap_or_else(|| panic!("no re-scan row for {key:?}"));
+        let (was, left) = (rules_of(&r["findings"]), rules_of(&copy["findings"]));
+        assert_eq!(copy["findings"], r["findings_after"], "{key:?}");
+        assert_eq!(copy["status"], r["status_after"], "{key:?}");
+        assert!(
+            left.is_subset(&was),
+            "{key:?}: the copy has new findings {left:?} (was {was:?})"
+        );
+        let not_repairable = r["message"]
+            .split("not repairable: ")
+            .nth(1)
+            .unwrap_or("")
+            .to_owned();
+        for (rule, said) in REPAIRABLE {
+            if left.contains(rule) {
+                assert!(
+                    !said.is_empty() && not_repairable.contains(said),
+                    "{key:?}: {rule} is left but the message says `{}`",
+                    r["message"]
+                );
+            }
+        }
+        for part in r["repairs"].split(';') {
+            let kind = part.split(':').next().unwrap();
+            let (_, rule) = REPAIRED_RULE
+                .iter()
+                .find(|(k, _)| *k == kind)
+                .unwrap_or_else(|| panic!("unknown repair {kind}"));
+            if left.contains(*rule) {
+                assert!(
+                    not_repairable.contains(rule),
+                    "{key:?}: {kind} ran but {rule} is left: {}",
+                    r["message"]
+                );
+            }
+        }
+    }
+
+    // (c) Hand-known results, read back from the copies.
+    let row = |path: &str| -> &Row {
+        rows.get(&(path.to_owned(), String::new()))
+            .or_else(|| rows.iter().find(|((p, _), _)| p == path).map(|(_, r)| r))
+            .unwrap_or_else(|| panic!("no row for {path}"))
+    };
+    let copy_of = |path: &str| -> Vec<(Mesh, Analysis)> {
+        let r = row(path);
+        assert!(!r["repaired_path"].is_empty(), "{path} has no copy: {r:?}");
+        analysed(&out.join(path))
+    };
+    let one = |path: &str| -> Analysis { copy_of(path).remove(0).1 };
+
+    // Inside-out tetrahedron: one outward solid of volume 1/6.
+    let a = one("rules/inside-out-shell.obj");
+    assert_eq!(
+        row("rules/inside-out-shell.obj")["repairs"],
+        "flip-inside-out-shells:1(4 faces)"
+    );
+    assert_eq!((a.shells.len(), a.inside_out_shells()), (1, 0));
+    assert_eq!(a.shells[0].role, Role::Solid);
+    assert!(close(a.shells[0].volume.unwrap(), 1.0 / 6.0, 1e-12));
+
+    // The 2x2x2 block whose 1x1x1 void faces into the material: the void is turned to face in,
+    // the volume stays 8 - 1 = 7 (not 8 + 1 = 9).
+    let a = one("print/hollow_block.obj");
+    assert_eq!(
+        row("print/hollow_block.obj")["repairs"],
+        "flip-inside-out-shells:1(12 faces)"
+    );
+    let roles: Vec<Role> = a.shells.iter().map(|s| s.role).collect();
+    assert_eq!(roles, [Role::Solid, Role::Cavity]);
+    assert!(close(a.shells[0].volume.unwrap(), 8.0, 1e-12));
+    assert!(close(a.shells[1].volume.unwrap(), -1.0, 1e-12));
+    assert!(close(a.volume().unwrap(), 7.0, 1e-12));
+    assert_eq!(a.inside_out_shells(), 0);
+
+    // The cavity fixture is right already (no copy, volume 27 - 1 = 26); with one outer triangle
+    // stored backwards only that triangle is turned, and the cavity still faces in: 26.
+    let cavity = row("rules/cavity.obj");
+    assert_eq!(
+        (cavity["repaired_path"].as_str(), cavity["volume"].as_str()),
+        ("", "26")
+    );
+    let a = one("extra/cavity_flipped_side.obj");
+    assert_eq!(
+        row("extra/cavity_flipped_side.obj")["repairs"],
+        "orient-faces:1"
+    );
+    let roles: Vec<Role> = a.shells.iter().map(|s| s.role).collect();
+    assert_eq!(roles, [Role::Solid, Role::Cavity]);
+    assert!(close(a.shells[0].volume.unwrap(), 27.0, 1e-12));
+    assert!(close(a.shells[1].volume.unwrap(), -1.0, 1e-12));
+    assert!(close(a.volume().unwrap(), 26.0, 1e-12));
+
+    // Non-manifold fixtures become manifold.
+    for path in [
+        "rules/non-manifold-edge.obj",
+        "rules/non-manifold-vertex.obj",
+        "rules/duplicate-face.obj",
+        "print/twin_boxes.stl",
+    ] {
+        let a = one(path);
+        assert_eq!(
+            (a.nonmanifold_edges, a.nonmanifold_vertices),
+            (0, 0),
+            "{path}"
+        );
+    }
+    // The bowtie's two triangles part at the split vertex.
+    assert_eq!(one("rules/non-manifold-vertex.obj").components.len(), 2);
+    // The duplicate is dropped: the closed tetrahedron (4 faces, 1/6) is left.
+    let a = one("rules/duplicate-face.obj");
+    assert_eq!((a.faces, a.border_edges, a.shells.len()), (4, 0, 1));
+    assert!(close(a.volume().unwrap(), 1.0 / 6.0, 1e-12));
+    // Two unit cubes on one edge become two closed cubes (the copies moved by about 1e-5 of
+    // the model's size, so the volume moves by as little).
+    let a = one("print/twin_boxes.stl");
+    assert_eq!((a.shells.len(), a.border_edges), (2, 0));
+    assert!(close(a.volume().unwrap(), 2.0, 1e-3));
+
+    // Holes are closed: the square tube gets its two caps (a unit cube), the vase its two
+    // 16-gon ends (a prism of volume 8 * 0.4^2 * sin(pi/8); the file rounds to 6 digits).
+    let a = one("rules/hole.obj");
+    assert_eq!(row("rules/hole.obj")["repairs"], "fill-holes:2(4 faces)");
+    assert_eq!((a.holes(), a.border_edges, a.shells.len()), (0, 0, 1));
+    assert!(close(a.volume().unwrap(), 1.0, 1e-12));
+    let a = one("scans/vase.off");
+    assert_eq!(row("scans/vase.off")["repairs"], "fill-holes:2(28 faces)");
+    assert_eq!((a.holes(), a.border_edges, a.shells.len()), (0, 0, 1));
+    let prism = 8.0 * 0.16 * (std::f64::consts::PI / 8.0).sin();
+    assert!(close(a.volume().unwrap(), prism, 1e-5), "{:?}", a.volume());
+
+    // Bad faces and vertices are gone.
+    assert_eq!(one("rules/degenerate-face.obj").faces, 4);
+    assert_eq!(one("rules/invalid-vertex.obj").invalid_vertices, 0);
+    let unreferenced = copy_of("rules/unreferenced-vertex.off");
+    assert_eq!(unreferenced[0].0.positions.len(), 4);
+    let a = one("rules/inconsistent-winding.obj");
+    assert!(a.oriented() && close(a.volume().unwrap(), 1.0 / 6.0, 1e-12));
+
+    // The crate, opened and with a side backwards: closed outward unit cube, every UV and normal
+    // and the material kept, the .mtl and its texture beside the copy. The clean crate gets none.
+    assert_eq!(row("props/crate.obj")["repaired_path"], "");
+    assert_eq!(
+        row("props/crate_open.obj")["repairs"],
+        "orient-faces:2;fill-holes:1(2 faces)"
+    );
+    let a = one("props/crate_open.obj");
+    assert_eq!(
+        (a.shells.len(), a.border_edges, a.inconsistent_edges),
+        (1, 0, 0)
+    );
+    assert!(close(a.volume().unwrap(), 1.0, 1e-12));
+    let source = std::fs::read_to_string(tree.join("props/crate_open.obj")).unwrap();
+    let text = std::fs::read_to_string(out.join("props/crate_open.obj")).unwrap();
+    for keyword in ["vt", "vn"] {
+        assert_eq!(
+            lines_with(&text, keyword),
+            lines_with(&source, keyword),
+            "{keyword}"
+        );
+    }
+    assert_eq!(lines_with(&text, "vt").len(), 4);
+    assert_eq!(lines_with(&text, "vn").len(), 6);
+    assert_eq!(lines_with(&text, "usemtl"), ["usemtl wood"]);
+    assert_eq!(lines_with(&text, "mtllib"), ["mtllib crate.mtl"]);
+    for side in ["crate.mtl", "crate.png"] {
+        assert_eq!(
+            std::fs::read(out.join("props").join(side)).unwrap(),
+            std::fs::read(tree.join("props").join(side)).unwrap(),
+            "{side}"
+        );
+    }
+
+    // PLY: the open cube is closed, and every vertex keeps its colour.
+    assert_eq!(
+        row("extra/open_cube.ply")["repairs"],
+        "fill-holes:1(2 faces)"
+    );
+    let a = one("extra/open_cube.ply");
+    assert_eq!((a.holes(), a.shells.len()), (0, 1));
+    assert!(close(a.volume().unwrap(), 1.0, 1e-12));
+    let ply = std::fs::read(out.join("extra/open_cube.ply")).unwrap();
+    let body = ply.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let header = String::from_utf8_lossy(&ply[..body]).into_owned();
+    assert!(
+        header.contains("format binary_little_endian 1.0\n") && header.contains("element face 7\n")
+    );
+    let colours: BTreeSet<([u32; 3], [u8; 3])> = (0..8)
+        .map(|i| {
+            let r = &ply[body + 15 * i..body + 15 * (i + 1)];
+            let x =
+                |k: usize| f32::from_le_bytes(r[4 * k..4 * k + 4].try_into().unwrap()).to_bits();
+            ([x(0), x(1), x(2)], [r[12], r[13], r[14]])
+        })
+        .collect();
+    let expected: BTreeSet<([u32; 3], [u8; 3])> = CUBE
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.map(f32::to_bits), [30 * i as u8, 7, 200]))
+        .collect();
+    assert_eq!(colours, expected);
+
+    // glTF and GLB: the box is closed and outward; the copies load with the gltf crate; the
+    // primitive keeps its material and attributes, 20 vertices each (the fill reuses the border's
+    // vertices), 12 triangles.
+    for path in ["extra/open_box.gltf", "extra/open_box.glb"] {
+        assert_eq!(
+            row(path)["repairs"],
+            "orient-faces:1;fill-holes:1(2 faces)",
+            "{path}"
+        );
+        let a = one(path);
+        assert_eq!(
+            (a.holes(), a.shells.len(), a.inconsistent_edges),
+            (0, 1, 0),
+            "{path}"
+        );
+        assert!(close(a.volume().unwrap(), 1.0, 1e-12), "{path}");
+        let bytes = std::fs::read(out.join(path)).unwrap();
+        gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| panic!("{path}: {e}"));
+        let (doc, src) = (
+            document(&bytes),
+            document(&std::fs::read(tree.join(path)).unwrap()),
+        );
+        for key in ["materials", "nodes", "scenes", "asset"] {
+            assert_eq!(doc[key], src[key], "{path}: {key}");
+        }
+        let prim = &doc["meshes"][0]["primitives"][0];
+        assert_eq!(prim["material"], json!(0));
+        let count = |name: &str| {
+            doc["accessors"][prim["attributes"][name].as_u64().unwrap() as usize]["count"].clone()
+        };
+        for name in ["POSITION", "NORMAL", "TEXCOORD_0"] {
+            assert_eq!(count(name), json!(20), "{path}: {name}");
+        }
+        assert_eq!(
+            doc["accessors"][prim["indices"].as_u64().unwrap() as usize]["count"],
+            json!(36)
+        );
+    }
+    // Every glTF or GLB copy in the output loads with the gltf crate.
+    for rel in hash_tree(&out).keys() {
+        if rel.ends_with(".gltf") || rel.ends_with(".glb") {
+            let bytes = std::fs::read(out.join(rel)).unwrap();
+            gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| panic!("{rel}: {e}"));
+        }
+    }
+
+    // (d) Repairing the repaired tree writes nothing.
+    let copies = hash_tree(&out);
+    scan(
+        dir.path(),
+        &["out", "--repair-dir", "twice", "--csv", "twice.csv"],
+    );
+    let twice = csv_rows(&dir.path().join("twice.csv"));
+    let written: Vec<&Row> = twice
+        .values()
+        .filter(|r| !r["repaired_path"].is_empty() || !r["repairs"].is_empty())
+        .collect();
+    assert!(written.is_empty(), "a second repair changed {written:?}");
+    assert_eq!(hash_tree(&dir.path().join("twice")), BTreeMap::new());
+    assert_eq!(copies, hash_tree(&out), "the copies changed");
+    assert_eq!(before, hash_tree(&tree), "the scanned tree changed");
+}
+
+// ---- a real textured glTF with a hole cut into it -------------------------------------------
+
+/// The indices of accessor `a` of a glTF whose only buffer is `bin`.
+fn indices(doc: &Value, bin: &[u8], a: usize) -> Vec<u32> {
+    let acc = &doc["accessors"][a];
+    let view = &doc["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
+        + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let count = acc["count"].as_u64().unwrap() as usize;
+    match acc["componentType"].as_u64().unwrap() {
+        5121 => bin[start..start + count]
+            .iter()
+            .map(|&b| b as u32)
+            .collect(),
+        5123 => (0..count)
+            .map(|i| u16::from_le_bytes([bin[start + 2 * i], bin[start + 2 * i + 1]]) as u32)
+            .collect(),
+        5125 => (0..count)
+            .map(|i| u32::from_le_bytes(bin[start + 4 * i..start + 4 * i + 4].try_into().unwrap()))
+            .collect(),
+        t => panic!("component type {t}"),
+    }
+}
+
+/// `BoxTextured` and `Duck` from the glTF samples (skipped when `../shared/corpus` is absent):
+/// the first two triangles are cut out of the index accessor (offset moved past them, count 6
+/// less) in a temporary copy, which the binary repairs. The copy is closed again with the file's
+/// triangle count, keeps its material, texture and attribute names, and every attribute has as
+/// many values as the cut source still uses (the fill reuses the border's vertices; the vertices
+/// only the cut triangles used are dropped): for the box, whose first two triangles are one whole
+/// side with 4 vertices of its own, 24 - 4 = 20. The box stays the cube of side 1 (volume 1).
+#[test]
+fn corpus_textured_gltf_with_a_hole_cut_is_repaired() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus/gltf_samples");
+    if !corpus.is_dir() {
+        eprintln!("skipped: no glTF samples at {}", corpus.display());
+        return;
+    }
+    for (sample, name, bin_name) in [
+        ("BoxTextured", "BoxTextured.gltf", "BoxTextured0.bin"),
+        ("Duck", "Duck.gltf", "Duck0.bin"),
+    ] {
+        let from = corpus.join(sample).join("glTF");
+        if !from.join(name).is_file() {
+            eprintln!("skipped: no {}", from.join(name).display());
+            continue;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let tree = dir.path().join("tree");
+        copy_tree(&from, &tree);
+        let mut doc: Value =
+            serde_json::from_slice(&std::fs::read(tree.join(name)).unwrap()).unwrap();
+        let bin = std::fs::read(tree.join(bin_name)).unwrap();
+        assert_eq!(doc["meshes"].as_array().unwrap().len(), 1, "{sample}");
+        assert_eq!(
+            doc["meshes"][0]["primitives"].as_array().unwrap().len(),
+            1,
+            "{sample}"
+        );
+        let prim = doc["meshes"][0]["primitives"][0].clone();
+        let ia = prim["indices"].as_u64().unwrap() as usize;
+        let all = indices(&doc, &bin, ia);
+        let size = match doc["accessors"][ia]["componentType"].as_u64().unwrap() {
+            5121 => 1,
+            5123 => 2,
+            _ => 4,
+        };
+        let acc = &mut doc["accessors"][ia];
+        acc["byteOffset"] = json!(acc["byteOffset"].as_u64().unwrap_or(0) + 6 * size);
+        acc["count"] = json!(all.len() - 6);
+        let obj = acc.as_object_mut().unwrap();
+        obj.remove("min");
+        obj.remove("max");
+        std::fs::write(tree.join(name), serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+        let used: BTreeSet<u32> = all[6..].iter().copied().collect();
+        if sample == "BoxTextured" {
+            assert_eq!(used.len(), 20);
+        }
+        let cut = analysed(&tree.join(name)).remove(0).1;
+        assert!(cut.holes() >= 1, "{sample}: the cut made no hole");
+
+        let before = hash_tree(&tree);
+        scan(
+            dir.path(),
+            &["tree", "--repair-dir", "out", "--csv", "r.csv"],
+        );
+        assert_eq!(before, hash_tree(&tree), "{sample}: the source changed");
+        let rows = csv_rows(&dir.path().join("r.csv"));
+        let r = rows.values().next().unwrap();
+        assert!(r["repairs"].contains("fill-holes:"), "{sample}: {r:?}");
+        assert_eq!(r["status_after"], "pass", "{sample}: {r:?}");
+        let copy = dir.path().join("out").join(name);
+        let bytes = std::fs::read(&copy).unwrap();
+        gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| panic!("{sample}: {e}"));
+        let a = analysed(&copy).remove(0).1;
+        assert_eq!(
+            (a.holes(), a.border_edges, a.shells.len()),
+            (0, 0, 1),
+            "{sample}"
+        );
+        assert_eq!(a.faces, all.len() / 3, "{sample}");
+        if sample == "BoxTextured" {
+            assert!(close(a.volume().unwrap(), 1.0, 1e-6), "{:?}", a.volume());
+        }
+        let after = document(&bytes);
+        for key in ["materials", "textures", "images", "samplers", "nodes"] {
+            assert_eq!(after[key], doc[key], "{sample}: {key}");
+        }
+        let p = &after["meshes"][0]["primitives"][0];
+        assert_eq!(p["material"], prim["material"], "{sample}");
+        let names = |v: &Value| {
+            v["attributes"]
+                .as_object()
+                .unwrap()
+                .keys()
+                .cloned()
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(names(p), names(&prim), "{sample}");
+        for attribute in ["POSITION", "NORMAL", "TEXCOORD_0"] {
+            let a = p["attributes"][attribute].as_u64().unwrap() as usize;
+            assert_eq!(
+                after["accessors"][a]["count"],
+                json!(used.len()),
+                "{sample}: {attribute}"
+            );
+        }
+        // The texture it names is beside the copy.
+        for image in doc["images"].as_array().into_iter().flatten() {
+            let uri = image["uri"].as_str().unwrap();
+            assert!(copy.with_file_name(uri).is_file(), "{sample}: {uri}");
+        }
+    }
+}
