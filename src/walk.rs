@@ -18,6 +18,7 @@ use std::path::{Component, Path, PathBuf};
 
 use globset::{Glob, GlobSet, GlobSetBuilder};
 
+use crate::copies::STAGE_PREFIX;
 use crate::formats::Format;
 
 /// One file to scan, or one walk error to report.
@@ -144,6 +145,10 @@ fn walk_folder(root: &Path, prefix: &Path, filter: &Filter, sources: &mut Vec<So
             if e.depth() == 0 || !e.file_type().is_dir() {
                 return true;
             }
+            // A repair's staging folder (left behind only by a killed run) holds no sources.
+            if e.file_name().to_string_lossy().starts_with(STAGE_PREFIX) {
+                return false;
+            }
             let rel = relative(e.path());
             !filter.excludes(&[&rel, &prefix.join(&rel)])
         });
@@ -243,11 +248,13 @@ mod tests {
             "notes.txt",
             "a/d.Ply",
             "z/e.off",
+            "z/.meshvet-stage-41-0/e.off",
         ]);
         let got = walk(&[dir.path().to_owned()], &Filter::everything());
         assert_eq!(
             displays(&got),
-            ["a.glb", "a/c.stl", "a/d.Ply", "b.OBJ", "z/e.off"]
+            ["a.glb", "a/c.stl", "a/d.Ply", "b.OBJ", "z/e.off"],
+            "a killed repair's staging folder is not walked"
         );
         assert!(got
             .iter()
