@@ -12,10 +12,10 @@
 //! rows of the file are kept as they are. A planner that fails on one mesh costs that mesh's
 //! repair only; the file's other meshes are still repaired.
 
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use crate::caught;
 use crate::config::Settings;
 use crate::formats::{self, write, Format, ReadContext};
 use crate::mesh::Mesh;
@@ -327,17 +327,6 @@ impl Drop for Stage {
             }
         }
     }
-}
-
-/// Runs `work`, turning a panic into its message.
-fn caught<T>(work: impl FnOnce() -> T) -> Result<T, String> {
-    catch_unwind(AssertUnwindSafe(work)).map_err(|panic| {
-        panic
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "a panic without a message".to_owned())
-    })
 }
 
 fn note(outcome: &mut Outcome, text: &str) {

@@ -26,3 +26,15 @@ pub mod weld;
 pub use corner_table::CornerTable;
 pub use mesh::Mesh;
 pub use topology::{analyse, Analysis, Component, Options, Role, Shell};
+
+/// Runs `work`, turning a panic into its message: the one way meshvet keeps a panic in one file's
+/// reader, analysis or repair from ending a scan (the caller makes it that file's row or note).
+pub(crate) fn caught<T>(work: impl FnOnce() -> T) -> Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)).map_err(|panic| {
+        panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic without a message".to_owned())
+    })
+}

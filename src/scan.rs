@@ -10,11 +10,11 @@
 //! `empty` row, and a panic in a reader or in the analysis is caught and becomes an `error` row. The
 //! scan never prints; progress is reported through a callback.
 
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::caught;
 use crate::config::Settings;
 use crate::formats::{self, Format, ReadContext};
 use crate::picture;
@@ -174,17 +174,6 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
             start,
         ),
     }
-}
-
-/// Runs `work`, turning a panic into its message.
-fn caught<T>(work: impl FnOnce() -> T) -> Result<T, String> {
-    catch_unwind(AssertUnwindSafe(work)).map_err(|panic| {
-        panic
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "a panic without a message".to_owned())
-    })
 }
 
 fn judge(

@@ -21,7 +21,6 @@ pub(super) mod container;
 mod nodes;
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
 use gltf::json;
@@ -40,12 +39,7 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
 
 /// Runs `f`, turning a panic (a check this reader lacks) into a read error for this file.
 fn guard<T>(f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
-    catch_unwind(AssertUnwindSafe(f)).unwrap_or_else(|panic| {
-        let detail = panic
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "unknown panic".to_string());
+    crate::caught(f).unwrap_or_else(|detail| {
         Err(ReadError::new(format!(
             "the glTF reader crashed on this file ({detail}): the file is malformed in a way meshvet does not yet describe; please report it"
         )))
