@@ -33,6 +33,7 @@
 //! that could not be read is read again next time. Outcomes with [`crate::scan::Detail`] (pictures
 //! for the HTML report) are not cached; callers that need details bypass the cache.
 
+use std::cell::OnceCell;
 use std::io::{self, Read};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -153,12 +154,10 @@ impl Cache {
         };
         let path = self.entry_path(source);
         let entry = read_entry(&path);
-        // Where the file's dependencies may be: `None` when the tree cannot be resolved (then
-        // every dependency is unavailable, as it is to the reader).
-        let location = Location::new(&source.path, &source.root).ok();
         let deps = Dependencies {
             format,
-            location: location.as_ref(),
+            source,
+            location: OnceCell::new(),
         };
         // Fast path: the file and its dependencies carry the stamps they had when the entry was
         // written, long enough before it that a later change must have changed a stamp; the
@@ -288,13 +287,20 @@ struct Miss {
 /// ([`crate::formats::dependency`]), so the cache never looks at a file the reader would refuse.
 struct Dependencies<'a> {
     format: Format,
-    location: Option<&'a Location>,
+    source: &'a Source,
+    /// Where the file's dependencies may be, resolved on first use (most files have none, and
+    /// resolving the tree costs a `readlink` per path component): `None` when the tree cannot be
+    /// resolved, and then every dependency is unavailable, as it is to the reader.
+    location: OnceCell<Option<Location>>,
 }
 
 impl Dependencies<'_> {
     /// The real path of dependency `name`, if the reader would read it.
     fn resolve(&self, name: &str) -> Option<PathBuf> {
-        crate::formats::dependency(self.format, name, self.location?)
+        let location = self
+            .location
+            .get_or_init(|| Location::new(&self.source.path, &self.source.root).ok());
+        crate::formats::dependency(self.format, name, location.as_ref()?)
     }
 }
 
