@@ -654,7 +654,9 @@ impl<'a> Work<'a> {
         } else {
             0.0
         };
-        let position = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
+        // Rounded to f32, as glTF, binary STL and most PLY files store it, so that the copy read
+        // back has the very position the plan judged (a sliver shell's volume sign can hang on it).
+        let position = [0, 1, 2].map(|i| f64::from((origin[i] + step * to_centre[i]) as f32));
         let welded = self.points.len() as u32;
         self.points.push(position);
         let mut copies: Vec<(u32, u32)> = Vec::new();
