@@ -2,8 +2,8 @@
 //! rather not parse CSV.
 //!
 //! Each object has every CSV column under its CSV name, in CSV order, typed: counts and floats are
-//! JSON numbers, booleans are `true`/`false`, an undefined value (an empty CSV cell) is `null`, text
-//! stays text. Two keys carry more than their CSV cells: `findings` is an array of
+//! JSON numbers, booleans are `true`/`false`, an undefined number or boolean (an empty CSV cell) is
+//! `null`, and text columns stay text (`mesh`, `repairs`, ... are `""` when empty). Two keys carry more than their CSV cells: `findings` is an array of
 //! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cell spelt out), and
 //! `shells` is the per-shell table
 //! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out}` (the CSV's count is its

@@ -76,7 +76,9 @@ pub fn draw(places: &Places) -> Option<String> {
         } else {
             svg.push_str("<g>");
         }
-        let screen = camera.fit(points, triangles);
+        // Framed on the full mesh, which the marks sit on (a simplified mesh's cluster means lie
+        // a little inside it).
+        let screen = camera.fit(&places.points, &places.triangles);
         draw_faces(&mut svg, &camera, &screen, points, triangles, inside_out);
         draw_marks(&mut svg, &screen, places);
         svg.push_str("</g>");
