@@ -500,7 +500,8 @@ fn every_format_reads_and_hostile_files_each_get_a_row() {
     const FACES: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
     let outside = tempfile::tempdir().unwrap();
     let tree = Tree::new(&[("ok/tetra.obj", TETRA)]);
-    // OFF, PLY (ASCII), STL (ASCII and binary), glTF (data URI) and GLB of the same tetrahedron.
+    // OFF, PLY (ASCII and binary), STL (ASCII and binary), glTF (data URI and .bin) and GLB of the
+    // same tetrahedron.
     let mut off = String::from("OFF\n4 4 0\n");
     let mut ply = String::from(
         "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
@@ -556,6 +557,33 @@ fn every_format_reads_and_hostile_files_each_get_a_row() {
         base64::engine::general_purpose::STANDARD.encode(&bin)
     );
     tree.write("ok/tetra.gltf", gltf(&data_uri, "").as_bytes());
+    // The same buffer as a .bin beside the .gltf, and as a GLB's BIN chunk (no uri).
+    tree.write("ok/tetra_bin.bin", &bin);
+    tree.write("ok/tetra_bin.gltf", gltf("tetra_bin.bin", "").as_bytes());
+    let mut json = gltf("", "").replace(r#""uri":"","#, "").into_bytes();
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let mut chunk = bin.clone();
+    chunk.resize(chunk.len().next_multiple_of(4), 0);
+    let mut glb = b"glTF".to_vec();
+    glb.extend(2u32.to_le_bytes());
+    glb.extend(((12 + 8 + json.len() + 8 + chunk.len()) as u32).to_le_bytes());
+    glb.extend((json.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(&json);
+    glb.extend((chunk.len() as u32).to_le_bytes());
+    glb.extend(b"BIN\0");
+    glb.extend(&chunk);
+    tree.write("ok/tetra.glb", &glb);
+    // Binary little-endian PLY: float positions, uchar-counted int index lists.
+    let mut ply_le = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+property float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n"
+        .to_vec();
+    ply_le.extend(TRI_TETRA.iter().flatten().flat_map(|x| x.to_le_bytes()));
+    for f in FACES {
+        ply_le.push(3);
+        ply_le.extend(f.iter().flat_map(|&i| (i as i32).to_le_bytes()));
+    }
+    tree.write("ok/tetra_le.ply", &ply_le);
     // Hostile ones.
     let mut truncated = binary.clone();
     truncated.truncate(84 + 50 + 20);
@@ -587,6 +615,9 @@ fn every_format_reads_and_hostile_files_each_get_a_row() {
         "ok/tetra_ascii.stl",
         "ok/tetra_binary.stl",
         "ok/tetra.gltf",
+        "ok/tetra_bin.gltf",
+        "ok/tetra.glb",
+        "ok/tetra_le.ply",
     ] {
         let r = row(path);
         assert_eq!(r[column("status")], "pass", "{path}: {r:?}");
