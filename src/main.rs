@@ -123,7 +123,11 @@ impl Summary {
         if self.empty > 0 {
             line = format!("{line}, {} empty", self.empty);
         }
-        format!("{line} in {seconds:.1} s")
+        if seconds < 1.0 {
+            format!("{line} in {:.0} ms", seconds * 1e3)
+        } else {
+            format!("{line} in {seconds:.1} s")
+        }
     }
 }
 

@@ -116,6 +116,8 @@ fn clean_tree_exits_0_with_a_summary() {
         "{}",
         run.stdout
     );
+    // A quick scan says its milliseconds rather than "0.0 s".
+    assert!(run.stdout.trim_end().ends_with(" ms"), "{}", run.stdout);
     assert_eq!(
         run.stdout.lines().count(),
         1,
