@@ -1,7 +1,9 @@
 //! Files that appear whole or not at all: every report (CSV, JSON Lines, JUnit, HTML, merged CSV)
-//! and every cache entry is written to a temporary file beside its target and renamed over it when complete.
-//! A crash, a full disk or an error half-way leaves the previous file untouched and no temporary
-//! file behind (dropping an uncommitted [`AtomicFile`] removes it).
+//! and every cache entry is written to a temporary file beside its target and renamed over it when
+//! complete. A crash, a full disk or an error half-way leaves the previous file untouched and no
+//! temporary file behind (dropping an uncommitted [`AtomicFile`] removes it). Reports are also
+//! synced to the disk before the rename, so a power cut leaves the old or the whole new one; cache
+//! entries are not (a power cut may cost an entry, which is verified when read, never a wrong row).
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};

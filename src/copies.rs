@@ -98,9 +98,13 @@ pub fn repair_file_with(
                 plans.push(Some(plan).filter(Plan::changes));
             }
             Err(panic) => {
+                // Other meshes of the file may still be repaired in a copy; this one is not.
                 note(
                     outcome,
-                    &format!("repair failed: the repair planner crashed ({panic}){UNTOUCHED}"),
+                    &format!(
+                        "repair failed: the repair planner crashed ({panic}) - this mesh is not \
+                         repaired, the source is untouched"
+                    ),
                 );
                 plans.push(None);
             }
@@ -293,7 +297,7 @@ impl Stage {
                 continue; // written twice under one name (listed twice)
             }
             let existed = to.exists();
-            if side && existed && std::fs::read(to).ok() == std::fs::read(from).ok() {
+            if side && existed && same_bytes(to, from) {
                 continue;
             }
             let result = to
@@ -334,4 +338,14 @@ fn note(outcome: &mut Outcome, text: &str) {
         outcome.row.message.push_str("; ");
     }
     outcome.row.message.push_str(text);
+}
+
+/// Whether two files hold the same bytes (sizes first; a file that cannot be read differs).
+fn same_bytes(a: &Path, b: &Path) -> bool {
+    let size = |p: &Path| std::fs::metadata(p).map(|m| m.len()).ok();
+    match (size(a), size(b)) {
+        (Some(x), Some(y)) if x == y => {}
+        _ => return false,
+    }
+    matches!((std::fs::read(a), std::fs::read(b)), (Ok(x), Ok(y)) if x == y)
 }

@@ -157,6 +157,24 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         }
     }
 
+    // A repair folder that holds a scanned path would hide every source: refused before anything
+    // is created or walked. (A folder that does not exist yet holds nothing.)
+    if let Some(dir) = &args.repair_dir {
+        if let Ok(real) = dir.canonicalize() {
+            if let Some(inside) = args
+                .paths
+                .iter()
+                .find(|p| p.canonicalize().is_ok_and(|p| p.starts_with(&real)))
+            {
+                return Err(format!(
+                    "the repair folder {} holds the scanned path {}: copies would be scanned as \
+                     sources - choose a repair folder outside it",
+                    dir.display(),
+                    inside.display()
+                ));
+            }
+        }
+    }
     let mut sources = walk::walk(&args.paths, &filter);
     if let Some(dir) = &args.repair_dir {
         std::fs::create_dir_all(dir)
@@ -165,18 +183,6 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         let real = dir
             .canonicalize()
             .map_err(|e| format!("{}: {e}", dir.display()))?;
-        if let Some(inside) = args
-            .paths
-            .iter()
-            .find(|p| p.canonicalize().is_ok_and(|p| p.starts_with(&real)))
-        {
-            return Err(format!(
-                "the repair folder {} holds the scanned path {}: copies would be scanned as \
-                 sources - choose a repair folder outside it",
-                dir.display(),
-                inside.display()
-            ));
-        }
         sources.retain(|s| !s.path.canonicalize().is_ok_and(|p| p.starts_with(&real)));
         settings.repair_dir = Some(dir.clone());
     }

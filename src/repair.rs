@@ -11,7 +11,8 @@
 //!    (one copy per extra fan, nudged a hair into its fan so welding does not merge it back);
 //! 3. orient every orientable component consistently, flipping the fewer faces;
 //! 4. fill holes of at most `max_hole_edges` edges (ear clipping in the loop's best-fit plane, a fan
-//!    only for a loop convex in that plane; a loop where ear clipping finds no ear is left open),
+//!    only for a loop convex in that plane; a loop that crosses itself in that plane, one where
+//!    ear clipping finds no ear, and a concave one over 1,024 edges are left open),
 //!    new faces wound like their neighbours, their corners carrying the attributes of the border
 //!    corners;
 //! 5. flip closed shells whose volume sign is wrong for their nesting depth (after the fills, so a
@@ -655,8 +656,16 @@ impl<'a> Work<'a> {
             0.0
         };
         // Rounded to f32, as glTF, binary STL and most PLY files store it, so that the copy read
-        // back has the very position the plan judged (a sliver shell's volume sign can hang on it).
-        let position = [0, 1, 2].map(|i| f64::from((origin[i] + step * to_centre[i]) as f32));
+        // back has the very position the plan judged (a sliver shell's volume sign can hang on it),
+        // unless rounding would take back half the move (a fan far smaller than an f32 step).
+        let exact = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
+        let rounded = exact.map(|x| f64::from(x as f32));
+        let moved = |p: &[f64; 3]| (0..3).map(|i| (p[i] - origin[i]).powi(2)).sum::<f64>();
+        let position = if 4.0 * moved(&rounded) >= moved(&exact) {
+            rounded
+        } else {
+            exact
+        };
         let welded = self.points.len() as u32;
         self.points.push(position);
         let mut copies: Vec<(u32, u32)> = Vec::new();
@@ -908,10 +917,14 @@ impl<'a> Work<'a> {
             let mut tris = Vec::new();
             // A loop that does not cross itself in its plane is split by ear clipping that finds a
             // proper ear at every step (or by a fan when it is convex): the fill cannot overlap
-            // itself. A loop that crosses or folds onto itself there, and one where ear clipping
-            // finds no ear (`triangulate` then falls back to a fan), could: left open.
+            // itself. A loop that crosses or folds onto itself there, one where ear clipping
+            // finds no ear (`triangulate` then falls back to a fan), and a concave one too long
+            // to ear-clip (fanned unchecked) could: left open.
             if !simple_in_plane(&ring, &self.points)
-                || triangulate(&ring, &self.points, &mut tris) == Split::Fallback
+                || matches!(
+                    triangulate(&ring, &self.points, &mut tris),
+                    Split::Fallback | Split::Large
+                )
             {
                 fill.no_triangulation += 1;
                 continue;

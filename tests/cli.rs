@@ -714,6 +714,9 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
 
     let refused = meshvet(tree.path(), &["scan", "in", "--repair-dir", "."]);
     assert_eq!(refused.code, 2, "{}", refused.stderr);
+    // A repair folder above the scanned folder holds it too.
+    let nested = meshvet(tree.path(), &["scan", "in/fixed", "--repair-dir", "in"]);
+    assert_eq!(nested.code, 2, "{}", nested.stderr);
     assert!(
         refused.stderr.contains("choose a repair folder outside it"),
         "{}",

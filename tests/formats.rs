@@ -479,6 +479,14 @@ fn stl_binary_with_trailing_bytes_is_read_with_a_note() {
     assert!(b.starts_with(b"solid"));
     b.push(b'\n');
     assert_eq!(ok("s.stl", &b).triangles.len(), 1);
+    // A count of 0 over real facets is an unfilled header, not an empty model: an error.
+    let mut b = binary_stl(&[t, t]);
+    b[80..84].copy_from_slice(&0u32.to_le_bytes());
+    assert!(
+        err("unfilled.stl", &b).contains("declares 0 triangles, but the file has room for 2"),
+        "{}",
+        err("unfilled.stl", &b)
+    );
     // Shorter than declared stays an error.
     let mut b = binary_stl(&[t, t]);
     b.truncate(b.len() - 1);

@@ -1473,7 +1473,8 @@ fn a_panicking_planner_costs_the_copy_not_the_scan_row() {
     assert_kept_with_note(
         &before,
         &after,
-        "repair failed: the repair planner crashed (planner boom) - no copy written, the source is untouched",
+        "repair failed: the repair planner crashed (planner boom) - this mesh is not repaired, the \
+         source is untouched",
     );
 }
 

@@ -657,9 +657,7 @@ fn check_mtl_bytes(name: &str, bytes: &[u8]) -> Option<String> {
         }
     }
     let mut reader = std::io::BufReader::new(bytes);
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        tobj::load_mtl_buf(&mut reader)
-    })) {
+    match crate::caught(|| tobj::load_mtl_buf(&mut reader)) {
         Ok(Ok(_)) => None,
         Ok(Err(e)) => Some(format!(
             "material library `{name}` could not be parsed ({e}); materials do not affect the checks"

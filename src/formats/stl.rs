@@ -55,6 +55,13 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
              not start with `solid` - re-export the file",
             bytes.len()
         ))),
+        // No facets declared but room for some: a streaming exporter never filled the count in.
+        // Reading none would make a full file an `empty` row; guessing the count is not ours.
+        Some(0) if bytes.len() >= HEADER + FACET => Err(ReadError::new(format!(
+            "binary STL header declares 0 triangles, but the file has room for {} facets after \
+             it - the exporter did not fill in the triangle count: re-export the file",
+            (bytes.len() - HEADER) / FACET
+        ))),
         // Longer than the declared facets: exporters pad binary files (to a block size, with a
         // trailing newline, ...). The declared facets are all there; the rest is ignored, noted.
         Some(n) if HEADER as u64 + FACET as u64 * n < bytes.len() as u64 => {

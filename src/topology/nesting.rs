@@ -32,8 +32,9 @@ const DIRECTIONS: [[f64; 3]; 6] = [
     [-0.267_261_241, 0.534_522_483, 0.801_783_725_7],
 ];
 
-/// How many distinct vertices of a shell are tried before giving up on a containment test (all of
-/// them lying on the other shell's surface means the shells touch, which is not containment).
+/// How many more distinct vertices of a shell are tried when the first lies on the other shell's
+/// surface, before giving up on a containment test (all of them lying there means the shells
+/// touch, which is not containment).
 const ATTEMPTS: usize = 12;
 
 /// The depth of every shell.

@@ -14,7 +14,6 @@
 //! Old accessors stay in the document unused.
 
 use std::borrow::Cow;
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
@@ -40,13 +39,11 @@ pub fn write(
     out: &Path,
     cx: &ReadContext,
 ) -> Result<Vec<PathBuf>, WriteError> {
-    catch_unwind(AssertUnwindSafe(|| write_unguarded(source, plans, out, cx))).unwrap_or_else(
-        |_| {
-            Err(WriteError::new(
-                "the glTF writer crashed on this file: please report it",
-            ))
-        },
-    )
+    crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
+        Err(WriteError::new(format!(
+            "the glTF writer crashed on this file ({panic}): please report it"
+        )))
+    })
 }
 
 fn bad(what: impl Into<String>) -> WriteError {
