@@ -184,7 +184,7 @@ fn judge(
 ) -> Result<Vec<Outcome>, String> {
     let start = Instant::now();
     let context = ReadContext {
-        root: source.root.clone(),
+        root: source.root.to_path_buf(),
         limits: settings.limits.clone(),
     };
     let meshes = formats::read(&source.path, format, &context).map_err(|e| e.to_string())?;

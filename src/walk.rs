@@ -15,6 +15,7 @@
 //! alike; `*` also crosses `/`. An excluded folder is not descended into.
 
 use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
 
 use globset::{Glob, GlobSet, GlobSetBuilder};
 
@@ -29,7 +30,8 @@ pub struct Source {
     /// The path in the report (see the module docs).
     pub display: String,
     /// The tree glTF buffers must stay inside: the folder given, or the folder of a file given.
-    pub root: PathBuf,
+    /// Shared by every file of a walked folder (a million-file tree holds one copy).
+    pub root: Arc<Path>,
     /// `None`: not a mesh extension (only for files named explicitly).
     pub format: Option<Format>,
     /// Why this entry could not be listed (permission denied, vanished while walking, ...).
@@ -110,9 +112,9 @@ pub fn walk(paths: &[PathBuf], filter: &Filter) -> Vec<Source> {
             if !filter.admits(&[&name, &normalise(given)]) {
                 continue;
             }
-            let root = match given.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
-                _ => PathBuf::from("."),
+            let root: Arc<Path> = match given.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p.into(),
+                _ => Path::new(".").into(),
             };
             // Only regular files are read: a FIFO or a device named here would block the scan.
             let error = match std::fs::metadata(given) {
@@ -136,6 +138,7 @@ pub fn walk(paths: &[PathBuf], filter: &Filter) -> Vec<Source> {
 }
 
 fn walk_folder(root: &Path, prefix: &Path, filter: &Filter, sources: &mut Vec<Source>) {
+    let shared_root: Arc<Path> = root.into();
     let relative = |p: &Path| p.strip_prefix(root).unwrap_or(p).to_owned();
     let walker = walkdir::WalkDir::new(root)
         .follow_links(false)
@@ -169,7 +172,7 @@ fn walk_folder(root: &Path, prefix: &Path, filter: &Filter, sources: &mut Vec<So
                 sources.push(Source {
                     path: e.path().to_owned(),
                     display: slashed(&display),
-                    root: root.to_owned(),
+                    root: shared_root.clone(),
                     format: Some(format),
                     error: None,
                 });
@@ -185,7 +188,7 @@ fn walk_folder(root: &Path, prefix: &Path, filter: &Filter, sources: &mut Vec<So
                     format: Format::of_path(&path),
                     display: slashed(&display),
                     path,
-                    root: root.to_owned(),
+                    root: shared_root.clone(),
                     error: Some(format!(
                         "cannot read this entry while walking the tree: {why} - check its permissions"
                     )),
@@ -258,7 +261,7 @@ mod tests {
         );
         assert!(got
             .iter()
-            .all(|s| s.root == dir.path() && s.error.is_none()));
+            .all(|s| *s.root == *dir.path() && s.error.is_none()));
     }
 
     #[test]
@@ -271,7 +274,7 @@ mod tests {
         assert!(named.is_empty());
         let named = walk(&[dir.path().join("c.obj")], &filter);
         assert_eq!(displays(&named), ["c.obj"]);
-        assert_eq!(named[0].root, dir.path());
+        assert_eq!(&*named[0].root, dir.path());
     }
 
     #[test]

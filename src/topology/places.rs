@@ -214,7 +214,7 @@ mod tests {
                 continue;
             };
             let context = ReadContext {
-                root: source.root.clone(),
+                root: source.root.to_path_buf(),
                 limits: Default::default(),
             };
             for mesh in formats::read(&source.path, format, &context).unwrap_or_default() {
