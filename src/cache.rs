@@ -58,6 +58,9 @@ const HEADER: &str = "meshvet-cache 2";
 /// An open cache folder.
 pub struct Cache {
     dir: PathBuf,
+    /// The current folder when the cache was opened: relative paths are made absolute against it
+    /// (`std::path::absolute` asks the system for it, twice per file).
+    cwd: Option<PathBuf>,
     /// blake3 of the format, the version and the row-changing settings.
     settings: blake3::Hash,
     max_file_bytes: u64,
@@ -84,6 +87,7 @@ impl Cache {
         std::fs::create_dir_all(dir)?;
         Ok(Cache {
             dir: dir.to_owned(),
+            cwd: std::env::current_dir().ok(),
             settings: settings_hash(settings),
             max_file_bytes: settings.limits.max_file_bytes,
             hits: AtomicUsize::new(0),
@@ -245,7 +249,13 @@ impl Cache {
 
     /// Where the entry of `source` lives.
     fn entry_path(&self, source: &Source) -> PathBuf {
-        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
+        let absolute = |p: &Path| {
+            let joined = match &self.cwd {
+                Some(cwd) if p.is_relative() => cwd.join(p),
+                _ => p.to_owned(),
+            };
+            std::path::absolute(&joined).unwrap_or(joined)
+        };
         let mut hasher = blake3::Hasher::new();
         field(
             &mut hasher,
@@ -555,11 +565,23 @@ struct Entry {
 /// The entry at `path` if it is whole: the header, then a checksum of the rest, then key, content
 /// hash, meta and payload. Anything else (missing, truncated, corrupt, foreign) is `None`.
 fn read_entry(path: &Path) -> Option<Entry> {
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .ok()?
-        .read_to_end(&mut bytes)
-        .ok()?;
+    // Plain reads into a buffer that fits most entries: no size query, one read and the one that
+    // sees the end (a warm re-scan does this for every file, so syscalls count).
+    let mut file = std::fs::File::open(path).ok()?;
+    let mut bytes = vec![0u8; 16 << 10];
+    let mut len = 0;
+    loop {
+        if len == bytes.len() {
+            bytes.resize(2 * len, 0);
+        }
+        match file.read(&mut bytes[len..]) {
+            Ok(0) => break,
+            Ok(n) => len += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return None,
+        }
+    }
+    bytes.truncate(len);
     let mut parts = bytes.splitn(3, |&b| b == b'\n');
     let (header, sum, body) = (parts.next()?, parts.next()?, parts.next()?);
     if header != HEADER.as_bytes() || sum != blake3::hash(body).to_hex().as_bytes() {
