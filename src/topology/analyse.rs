@@ -658,7 +658,7 @@ fn first_faces_flip(
 }
 
 /// Orders points by x, then y, then z.
-fn by_position(p: &[f64; 3], q: &[f64; 3]) -> std::cmp::Ordering {
+pub(super) fn by_position(p: &[f64; 3], q: &[f64; 3]) -> std::cmp::Ordering {
     p[0].total_cmp(&q[0])
         .then(p[1].total_cmp(&q[1]))
         .then(p[2].total_cmp(&q[2]))

@@ -121,12 +121,8 @@ fn contains(
             .iter()
             .flat_map(|&t| table.triangles()[t as usize])
     };
-    let lowest = vertices().min_by(|&a, &b| {
-        let (a, b) = (points[a as usize], points[b as usize]);
-        a[0].total_cmp(&b[0])
-            .then(a[1].total_cmp(&b[1]))
-            .then(a[2].total_cmp(&b[2]))
-    });
+    let lowest = vertices()
+        .min_by(|&a, &b| super::analyse::by_position(&points[a as usize], &points[b as usize]));
     let Some(lowest) = lowest else { return false };
     let mut tried: Vec<u32> = Vec::with_capacity(ATTEMPTS + 1);
     tried.push(lowest);

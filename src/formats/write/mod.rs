@@ -15,11 +15,11 @@ mod stl;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use rustc_hash::FxHashMap;
 
 use super::{polygon, Format, ReadContext, ReadError};
+use crate::atomic::AtomicFile;
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
@@ -121,33 +121,16 @@ pub fn write_copy(
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, creating
 /// the folder when needed.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
     let folder = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(folder)?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let temp = folder.join(format!(
-        ".{name}.{}-{}.meshvet-tmp",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let result = (|| {
-        let mut file = std::fs::File::create(&temp)?;
+    let written = AtomicFile::create(path).and_then(|mut file| {
         file.write_all(bytes)?;
-        file.sync_all()?;
-        drop(file);
-        std::fs::rename(&temp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&temp);
-        return Err(WriteError(format!("cannot write {}: {e}", path.display())));
-    }
-    Ok(())
+        file.commit()
+    });
+    written.map_err(|e| WriteError(format!("cannot write {}: {e}", path.display())))
 }
 
 /// Copies `from` (a file the source refers to) to `to` atomically, unless `to` is `from` itself.
