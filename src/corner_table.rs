@@ -159,6 +159,135 @@ impl CornerTable {
         }
     }
 
+    /// Reverses the winding of every triangle `t` with `flip[t]`: its corners 1 and 2 swap places,
+    /// as a build from the flipped triangles numbers them. Adjacency does not change, so the table
+    /// is updated in one pass over the corners instead of rebuilt: each corner moves to its new
+    /// place with its opposite renamed the same way, and a manifold edge's direction bit toggles
+    /// when exactly one of its two faces flips. The result equals a build of the flipped triangles.
+    pub fn flip_triangles(&mut self, flip: &[bool]) {
+        assert_eq!(flip.len(), self.v.len(), "one flag per triangle");
+        let moved = |c: u32| -> u32 {
+            match (flip[c as usize / 3], c % 3) {
+                (true, 1) => c + 1,
+                (true, 2) => c - 1,
+                _ => c,
+            }
+        };
+        let mut o = vec![0u32; self.o.len()];
+        let mut same_direction = vec![0u64; self.same_direction.len()];
+        for c in 0..self.o.len() as u32 {
+            let x = self.o[c as usize];
+            let d = moved(c);
+            o[d as usize] = if x == NON_MANIFOLD {
+                NON_MANIFOLD
+            } else if x == c {
+                d
+            } else {
+                let toggled = flip[c as usize / 3] != flip[x as usize / 3];
+                if self.is_consistent(c) == toggled {
+                    same_direction[d as usize / 64] |= 1 << (d % 64);
+                }
+                moved(x)
+            };
+        }
+        self.o = o;
+        self.same_direction = same_direction;
+        for (t, &f) in self.v.iter_mut().zip(flip) {
+            if f {
+                t.swap(1, 2);
+            }
+        }
+        for w in self.nm_offsets.windows(2) {
+            let edge = &mut self.nm_corners[w[0] as usize..w[1] as usize];
+            for c in edge.iter_mut() {
+                *c = moved(*c);
+            }
+            edge.sort_unstable();
+        }
+    }
+
+    /// Adds `triangles` after the table's own, as a build of all of them in that order would,
+    /// when none of their edges would bound three or more faces: each new edge pairs with the one
+    /// face of an old border edge, or with another new triangle, or is a border. Returns `false`,
+    /// leaving the table unchanged, when an edge would become non-manifold (the caller rebuilds).
+    /// Costs one pass over the corners plus the new triangles: filling a few holes in a large mesh
+    /// no longer rebuilds its table.
+    pub fn append_triangles(&mut self, triangles: &[[u32; 3]]) -> bool {
+        if triangles.is_empty() {
+            return true;
+        }
+        if self.v.len() + triangles.len() > MAX_TRIANGLES
+            || triangles
+                .iter()
+                .flatten()
+                .any(|&v| v as usize >= self.vertex_count)
+            || triangles
+                .iter()
+                .any(|t| t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+        {
+            return false;
+        }
+        let edge = |a: u32, b: u32| (a.min(b), a.max(b));
+        // The corners of every edge between vertices of the new triangles, old and new.
+        let mut touched = vec![false; self.vertex_count];
+        for &v in triangles.iter().flatten() {
+            touched[v as usize] = true;
+        }
+        let mut corners: rustc_hash::FxHashMap<(u32, u32), Vec<u32>> = Default::default();
+        for (t, tri) in self.v.iter().chain(triangles).enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                if touched[a as usize] && touched[b as usize] {
+                    corners
+                        .entry(edge(a, b))
+                        .or_default()
+                        .push((3 * t + k) as u32);
+                }
+            }
+        }
+        let first_new = 3 * self.v.len() as u32;
+        // Every edge a new triangle has: at most two faces, and an old one only on an old border.
+        for list in corners.values() {
+            let new = list.iter().any(|&c| c >= first_new);
+            if new && (list.len() > 2 || list.iter().any(|&c| c < first_new && !self.is_border(c)))
+            {
+                return false;
+            }
+        }
+        self.v.extend_from_slice(triangles);
+        self.o.resize(3 * self.v.len(), 0);
+        self.same_direction
+            .resize((3 * self.v.len()).div_ceil(64), 0);
+        for list in corners.values() {
+            if !list.iter().any(|&c| c >= first_new) {
+                continue;
+            }
+            match *list.as_slice() {
+                [c] => {
+                    self.o[c as usize] = c;
+                    self.edge_count += 1;
+                    self.border_count += 1;
+                }
+                [a, b] => {
+                    self.o[a as usize] = b;
+                    self.o[b as usize] = a;
+                    if a < first_new {
+                        self.border_count -= 1; // an old border edge, closed
+                    } else {
+                        self.edge_count += 1;
+                    }
+                    if self.v(Self::n(a)) == self.v(Self::n(b)) {
+                        for c in [a, b] {
+                            self.same_direction[c as usize / 64] |= 1 << (c % 64);
+                        }
+                    }
+                }
+                _ => unreachable!("checked above: at most two faces"),
+            }
+        }
+        true
+    }
+
     /// Number of triangles.
     #[inline]
     pub fn triangle_count(&self) -> usize {
@@ -324,6 +453,61 @@ mod tests {
             }
             assert_eq!(d, c);
         }
+    }
+
+    /// Flipping in place gives the table a build of the flipped triangles gives, for every subset
+    /// of flipped faces, on a mesh with manifold, border and non-manifold edges (a tetrahedron
+    /// missing a face, plus two fins on its edge 0-1 and a loose triangle).
+    #[test]
+    fn flipping_in_place_equals_rebuilding() {
+        let triangles = [
+            [0, 2, 1],
+            [0, 1, 3],
+            [1, 2, 3],
+            [0, 1, 4],
+            [1, 0, 5],
+            [6, 7, 8],
+        ];
+        for mask in 0..1u32 << triangles.len() {
+            let flip: Vec<bool> = (0..triangles.len()).map(|t| mask >> t & 1 == 1).collect();
+            let mut table = CornerTable::build(&triangles, 9);
+            table.flip_triangles(&flip);
+            let flipped: Vec<[u32; 3]> = triangles
+                .iter()
+                .zip(&flip)
+                .map(|(&[a, b, c], &f)| if f { [a, c, b] } else { [a, b, c] })
+                .collect();
+            assert_eq!(table, CornerTable::build(&flipped, 9), "mask {mask:b}");
+        }
+    }
+
+    /// Appending triangles gives the table a build of all of them gives: a hole in a tetrahedron
+    /// filled, a fin added on a border edge, a loose pair of triangles; and an append that would
+    /// make an edge non-manifold is refused, leaving the table as it was.
+    #[test]
+    fn appending_equals_rebuilding_or_is_refused() {
+        let open = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [5, 6, 7]];
+        let cases: [&[[u32; 3]]; 4] = [
+            &[[2, 0, 3]],             // closes the tetrahedron (consistently)
+            &[[0, 2, 3]],             // closes it with the opposite winding
+            &[[0, 3, 4]],             // a fin on the border edge 0-3
+            &[[4, 8, 9], [8, 4, 10]], // two new triangles sharing an edge
+        ];
+        for new in cases {
+            let mut table = CornerTable::build(&open, 11);
+            assert!(table.append_triangles(new), "{new:?}");
+            let all: Vec<[u32; 3]> = open.iter().chain(new).copied().collect();
+            assert_eq!(table, CornerTable::build(&all, 11), "{new:?}");
+        }
+        // Edge 0-1 already bounds two faces: a third would be non-manifold.
+        let mut table = CornerTable::build(&open, 11);
+        assert!(!table.append_triangles(&[[1, 0, 4]]));
+        assert_eq!(table, CornerTable::build(&open, 11));
+        // Three new faces on one new edge, and a vertex out of range.
+        assert!(!table.append_triangles(&[[4, 8, 9], [8, 4, 10], [4, 8, 5]]));
+        assert!(!table.append_triangles(&[[4, 8, 11]]));
+        assert!(!table.append_triangles(&[[4, 8, 4]]));
+        assert_eq!(table, CornerTable::build(&open, 11));
     }
 
     /// One triangle: three border edges, each corner its own opposite.
