@@ -17,12 +17,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::caught;
 use crate::config::Settings;
-use crate::formats::{self, write, Format, ReadContext};
+use crate::formats::{self, write, Format, ReadContext, Retained};
 use crate::mesh::Mesh;
 use crate::repair::{self, Options, Plan};
 use crate::rules::{self, MeshFacts, Status};
 use crate::scan::Outcome;
-use crate::topology::analyse;
+use crate::topology::{analyse, Built};
 
 /// Where the copy of the file reported as `display` goes under `dir`: the report path with
 /// anything that would climb out (`..`, a root) left out.
@@ -39,6 +39,16 @@ pub fn copy_path(dir: &Path, display: &str) -> PathBuf {
 /// The prefix of staging folders (`.meshvet-stage-PID-N`), left only by a process that died.
 pub const STAGE_PREFIX: &str = ".meshvet-stage-";
 
+/// What the scan of a file kept for repairing it, so that nothing is built or read twice: each
+/// mesh's weld and Corner Table (`built[i]` for `meshes[i]`; missing ones are built again) and
+/// what the reader kept for the writer (else the writer reads the source again). The default
+/// keeps nothing.
+#[derive(Debug, Default)]
+pub struct Kept {
+    pub built: Vec<Option<Built>>,
+    pub retained: Option<Retained>,
+}
+
 /// Repairs the meshes of one file (`outcomes[i]` is the row of `meshes[i]`).
 #[allow(clippy::too_many_arguments)]
 pub fn repair_file(
@@ -48,6 +58,7 @@ pub fn repair_file(
     format: Format,
     context: &ReadContext,
     meshes: &[Mesh],
+    kept: Kept,
     outcomes: &mut [Outcome],
     settings: &Settings,
 ) {
@@ -58,14 +69,15 @@ pub fn repair_file(
         format,
         context,
         meshes,
+        kept,
         outcomes,
         settings,
-        &repair::plan,
+        &repair::plan_with,
     );
 }
 
-/// [`repair_file`] with the planning step given (`repair::plan` in a scan; tests pass planners
-/// that panic or return plans a writer cannot take).
+/// [`repair_file`] with the planning step given (`repair::plan_with` in a scan; tests pass
+/// planners that panic or return plans a writer cannot take).
 #[allow(clippy::too_many_arguments)]
 pub fn repair_file_with(
     dir: &Path,
@@ -74,18 +86,21 @@ pub fn repair_file_with(
     format: Format,
     context: &ReadContext,
     meshes: &[Mesh],
+    kept: Kept,
     outcomes: &mut [Outcome],
     settings: &Settings,
-    planner: &dyn Fn(&Mesh, &Options) -> Plan,
+    planner: &dyn Fn(&Mesh, &Options, Option<Built>) -> Plan,
 ) {
     let options = settings.repair_options();
     let mut plans: Vec<Option<Plan>> = Vec::with_capacity(meshes.len());
+    let mut built = kept.built.into_iter();
     for (mesh, outcome) in meshes.iter().zip(outcomes.iter_mut()) {
+        let built = built.next().flatten();
         if outcome.findings.is_empty() || mesh.triangles.is_empty() {
             plans.push(None);
             continue;
         }
-        match caught(|| planner(mesh, &options)) {
+        match caught(|| planner(mesh, &options, built)) {
             Ok(plan) => {
                 if !plan.not_repairable.is_empty() {
                     note(
@@ -114,7 +129,12 @@ pub fn repair_file_with(
         return;
     }
     let out = copy_path(dir, display);
-    match caught(|| stage_and_check(&out, dir, source, format, context, meshes, &plans, settings)) {
+    let retained = kept.retained;
+    match caught(|| {
+        stage_and_check(
+            &out, dir, source, format, context, meshes, retained, &plans, settings,
+        )
+    }) {
         Ok(Ok(checked)) => {
             let repaired_path = out.to_string_lossy().replace('\\', "/");
             for ((plan, outcome), after) in plans.iter().zip(outcomes.iter_mut()).zip(checked.after)
@@ -166,6 +186,7 @@ fn stage_and_check(
     format: Format,
     context: &ReadContext,
     meshes: &[Mesh],
+    retained: Option<Retained>,
     plans: &[Option<Plan>],
     settings: &Settings,
 ) -> Result<Checked, String> {
@@ -184,8 +205,13 @@ fn stage_and_check(
         .file_name()
         .ok_or_else(|| "the copy has no file name".to_owned())?;
     let staged = stage.path.join(name);
-    let written =
-        write::write_copy(source, format, plans, &staged, context).map_err(|e| e.to_string())?;
+    // What the scan's read kept goes with the mesh it read (one-mesh formats only).
+    let retained = match (retained, meshes) {
+        (Some(r), [mesh]) => Some((mesh, r)),
+        _ => None,
+    };
+    let written = write::write_copy(source, format, plans, &staged, context, retained)
+        .map_err(|e| e.to_string())?;
     // Read the copy back and judge it as the scan judges a file.
     let copy_context = ReadContext {
         root: stage.path.clone(),

@@ -28,7 +28,7 @@ use rustc_hash::FxHashMap;
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::formats::polygon::{triangulate, Split};
 use crate::mesh::Mesh;
-use crate::topology::analyse::{find, is_flat, union, vertex_order};
+use crate::topology::analyse::{find, is_flat, union, vertex_order, Built};
 use crate::topology::nesting::{depths, ShellGeometry};
 use crate::weld::{weld, INVALID};
 
@@ -197,7 +197,13 @@ impl Plan {
 
 /// Plans the repair of one mesh.
 pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
-    let mut work = Work::new(mesh, options);
+    plan_with(mesh, options, None)
+}
+
+/// [`plan`], starting from the weld and Corner Table the scan's analysis of `mesh` built (when
+/// given and built with this weld tolerance) instead of building them again.
+pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
+    let mut work = Work::new(mesh, options, built);
     let mut done: Vec<(Kind, usize, Option<String>)> = Vec::new();
     let mut not_repairable = Vec::new();
 
@@ -327,11 +333,24 @@ struct Work<'a> {
     /// still the current ones (flipping faces keeps the adjacency but not the windings).
     table: Option<Rc<(CornerTable, Vec<u32>)>>,
     wound: bool,
+    /// The table is the analysis's and the analysis found no non-manifold edge or vertex (so
+    /// there is nothing to split); cleared when faces change.
+    manifold: bool,
 }
 
 impl<'a> Work<'a> {
-    fn new(mesh: &'a Mesh, options: &Options) -> Work<'a> {
-        let w = weld(&mesh.positions, options.weld_tolerance);
+    fn new(mesh: &'a Mesh, options: &Options, built: Option<Built>) -> Work<'a> {
+        // The analysis's table is the one `build_table` would build now: the same faces (valid,
+        // not degenerate), in the same order, indexed by input face as `triangles` is here.
+        let built = built.filter(|b| {
+            b.tolerance == options.weld_tolerance
+                && b.welded.map.len() == mesh.positions.len()
+                && b.source.len() == b.table.triangle_count()
+        });
+        let (w, table, manifold) = match built {
+            Some(b) => (b.welded, Some(Rc::new((b.table, b.source))), b.manifold),
+            None => (weld(&mesh.positions, options.weld_tolerance), None, false),
+        };
         let triangles = mesh
             .triangles
             .iter()
@@ -352,8 +371,9 @@ impl<'a> Work<'a> {
             new_vertices: Vec::new(),
             welded: w.map,
             points: w.positions,
-            table: None,
-            wound: false,
+            wound: table.is_some(),
+            table,
+            manifold,
         }
     }
 
@@ -373,6 +393,7 @@ impl<'a> Work<'a> {
     /// Forgets the table after faces or vertices changed.
     fn changed(&mut self) {
         self.table = None;
+        self.manifold = false;
     }
 
     fn vertex_count(&self) -> usize {
@@ -412,6 +433,10 @@ impl<'a> Work<'a> {
             counts[kind] += usize::from(options.drop_degenerate_faces);
             !options.drop_degenerate_faces
         });
+        if counts.iter().any(|&n| n > 0) {
+            // Table indices are positions in `triangles`: they moved.
+            self.changed();
+        }
         if options.drop_duplicate_faces {
             counts[2] = self.drop_duplicates();
         }
@@ -489,6 +514,9 @@ impl<'a> Work<'a> {
     /// edges, and its vertices that got at least one copy (each counted once, however many copies
     /// it got and in however many rounds).
     fn split_nonmanifold(&mut self, options: &Options) -> (usize, usize) {
+        if self.manifold && self.table.is_some() {
+            return (0, 0);
+        }
         let mut edges = None;
         let nudge = self.nudge_distance(options.weld_tolerance);
         let mut last = usize::MAX;
@@ -703,6 +731,8 @@ impl<'a> Work<'a> {
         let mut non_orientable = 0;
         let mut stack = Vec::new();
         let mut members = Vec::new();
+        // The table's faces flipped, to flip the table with them instead of rebuilding it.
+        let mut table_flips = vec![false; nt];
         for seed in 0..nt {
             if parity[seed].is_some() {
                 continue;
@@ -741,9 +771,17 @@ impl<'a> Work<'a> {
                 for &t in &members {
                     if parity[t as usize] == Some(flip_odd) {
                         self.flip(index[t as usize] as usize);
+                        table_flips[t as usize] = true;
                     }
                 }
                 flipped += count;
+            }
+        }
+        drop(shared);
+        if flipped > 0 {
+            if let Some(table) = self.table.as_mut().and_then(Rc::get_mut) {
+                table.0.flip_triangles(&table_flips);
+                self.wound = true;
             }
         }
         (flipped, non_orientable)
@@ -964,9 +1002,36 @@ impl<'a> Work<'a> {
             fill.holes += 1;
             fill.faces += ring.len() - 2;
         }
-        self.triangles.extend(new_triangles);
-        self.changed();
+        drop(shared);
+        self.add_triangles(new_triangles);
         fill
+    }
+
+    /// Adds fill triangles, adding them to the current table too where it can take them (no edge
+    /// becomes non-manifold), so the next step does not rebuild it.
+    fn add_triangles(&mut self, new: Vec<Triangle>) {
+        if new.is_empty() {
+            return;
+        }
+        let first = self.triangles.len() as u32;
+        let welded: Vec<[u32; 3]> = new.iter().map(|t| self.welded_of(t)).collect();
+        self.triangles.extend(new);
+        let appended = welded.iter().all(Self::in_table)
+            && self.wound
+            && self
+                .table
+                .as_mut()
+                .and_then(Rc::get_mut)
+                .is_some_and(|(table, index)| {
+                    let ok = table.append_triangles(&welded);
+                    if ok {
+                        index.extend(first..first + welded.len() as u32);
+                    }
+                    ok
+                });
+        if !appended {
+            self.changed();
+        }
     }
 }
 

@@ -20,7 +20,7 @@ use crate::formats::{self, Format, ReadContext};
 use crate::picture;
 use crate::report::{Row, ShellRow};
 use crate::rules::{self, Finding, MeshFacts, Status};
-use crate::topology::{analyse, places, Shell};
+use crate::topology::{analyse, analyse_keeping, places, Built, Shell};
 use crate::walk::Source;
 
 /// Files per chunk for each worker thread. Rows are small, so a chunk costs little memory; a large
@@ -187,7 +187,14 @@ fn judge(
         root: source.root.to_path_buf(),
         limits: settings.limits.clone(),
     };
-    let meshes = formats::read(&source.path, format, &context).map_err(|e| e.to_string())?;
+    // A repairing scan keeps what the writer of a copy needs, so the file is read once.
+    let repairing = settings.repair_dir.is_some();
+    let (meshes, retained) = if repairing {
+        formats::read_retaining(&source.path, format, &context).map_err(|e| e.to_string())?
+    } else {
+        let meshes = formats::read(&source.path, format, &context).map_err(|e| e.to_string())?;
+        (meshes, None)
+    };
     let read_millis = millis(start);
     if meshes.is_empty() {
         let mut row = Row::error(&source.display, Some(format), "", read_millis);
@@ -201,11 +208,19 @@ fn judge(
         }]);
     }
     let options = settings.options();
+    // ... and each analysis's weld and table, for the repair planner.
+    let mut built: Vec<Option<Built>> = Vec::new();
     let outcomes = meshes
         .iter()
         .map(|mesh| {
             let start = Instant::now();
-            let analysis = analyse(mesh, &options);
+            let analysis = if repairing {
+                let (analysis, kept) = analyse_keeping(mesh, &options);
+                built.push(Some(kept));
+                analysis
+            } else {
+                analyse(mesh, &options)
+            };
             let (status, findings) = if mesh.triangles.is_empty() {
                 (Status::Empty, Vec::new())
             } else {
@@ -253,6 +268,7 @@ fn judge(
             format,
             &context,
             &meshes,
+            crate::copies::Kept { built, retained },
             &mut outcomes,
             settings,
         );

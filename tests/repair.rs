@@ -5,11 +5,18 @@
 #[allow(dead_code)]
 mod shapes;
 
-use meshvet::repair::{plan, Kind, Options, Plan};
+use meshvet::repair::{plan, plan_with, Kind, Options, Plan};
 use meshvet::{analyse, Analysis, Mesh, Role};
 
 fn repaired(mesh: &Mesh) -> (Plan, Mesh, Analysis) {
     let p = plan(mesh, &Options::default());
+    // A scan hands the planner its analysis's weld and table; the plan must be the same.
+    let (_, built) = meshvet::topology::analyse_keeping(mesh, &Default::default());
+    assert_eq!(
+        plan_with(mesh, &Options::default(), Some(built)),
+        p,
+        "planning from the analysis's table changed the plan"
+    );
     let out = p.apply(mesh);
     let again = plan(&out, &Options::default());
     assert!(!again.changes(), "a second repair changed {:?}", again.done);

@@ -118,6 +118,44 @@ pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, 
     }
 }
 
+/// What a reader kept of a file for the writer of its repaired copy, so that the copy is written
+/// without reading and parsing the file a second time ([`read_retaining`]).
+#[derive(Debug)]
+pub struct Retained(RetainedKind);
+
+#[derive(Debug)]
+enum RetainedKind {
+    Obj(Box<obj::Detail>),
+}
+
+/// [`read`], also keeping what the writer of a repaired copy needs where reading it again would
+/// cost a second parse of the file (OBJ: texture coordinates, normals, polygons and groups; the
+/// other writers read what they need again, which costs little next to their parse). The meshes
+/// are those [`read`] returns.
+pub fn read_retaining(
+    path: &Path,
+    format: Format,
+    cx: &ReadContext,
+) -> Result<(Vec<Mesh>, Option<Retained>), ReadError> {
+    match format {
+        Format::Obj => {
+            check_file(path, &cx.limits)?;
+            let (meshes, detail) = obj::read_retaining(path, cx)?;
+            Ok((meshes, Some(Retained(RetainedKind::Obj(detail)))))
+        }
+        _ => Ok((read(path, format, cx)?, None)),
+    }
+}
+
+impl Retained {
+    /// The OBJ detail, when this was kept of an OBJ file.
+    pub(crate) fn obj(self) -> Option<Box<obj::Detail>> {
+        match self.0 {
+            RetainedKind::Obj(detail) => Some(detail),
+        }
+    }
+}
+
 /// The real path of `name`, a file a model of `format` names (an OBJ `mtllib`, a glTF buffer or
 /// image URI), if the reader's own rule lets it be read ([`contain`]: inside the tree before and
 /// after symbolic links, a regular file); `None` otherwise. Opens nothing. For the cache, which

@@ -21,11 +21,37 @@ use super::{Limits, ReadContext, ReadError};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
+    read_with(path, cx, None).map(|(meshes, _)| meshes)
+}
+
+/// [`read`], also keeping the [`Detail`] the writer of a repaired copy needs (the scan of a
+/// repairing run: one read of the file instead of two).
+pub(crate) fn read_retaining(
+    path: &Path,
+    cx: &ReadContext,
+) -> Result<(Vec<Mesh>, Box<Detail>), ReadError> {
+    let (meshes, detail) = read_with(path, cx, Some(Box::default()))?;
+    Ok((meshes, detail.unwrap_or_default()))
+}
+
+fn read_with(
+    path: &Path,
+    cx: &ReadContext,
+    detail: Option<Box<Detail>>,
+) -> Result<(Vec<Mesh>, Option<Box<Detail>>), ReadError> {
     let bytes = std::fs::read(path)?;
-    let parsed = parse(&bytes, cx)?;
+    let mut parsed = parse_with(&bytes, cx, detail)?;
+    if let Some(detail) = parsed.detail.as_mut() {
+        detail.mtllibs = parsed
+            .mtllibs
+            .iter()
+            .map(|(name, _)| name.clone())
+            .collect();
+    }
+    let detail = parsed.detail;
     let mut mesh = parsed.mesh;
     if parsed.mtllibs.is_empty() {
-        return Ok(vec![mesh]);
+        return Ok((vec![mesh], detail));
     }
     let location = match Location::new(path, &cx.root) {
         Ok(location) => location,
@@ -33,7 +59,7 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
             mesh.notes.push(format!(
                 "material libraries not read ({e}); materials do not affect the checks"
             ));
-            return Ok(vec![mesh]);
+            return Ok((vec![mesh], detail));
         }
     };
     for (name, line) in &parsed.mtllibs {
@@ -43,7 +69,7 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
             }
         }
     }
-    Ok(vec![mesh])
+    Ok((vec![mesh], detail))
 }
 
 /// The files an `mtllib` line names: `mtllib a.mtl b.mtl` names several, but a single name with
@@ -87,6 +113,7 @@ struct Parsed {
 type Skipped = BTreeMap<String, (u64, u64)>;
 
 /// Parses OBJ bytes. Errors name the line.
+#[cfg(test)]
 fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Parsed, ReadError> {
     parse_with(bytes, cx, None)
 }
@@ -103,19 +130,33 @@ pub(crate) struct Detail {
     /// Text after `vn` on each `vn` line.
     pub normals: Vec<String>,
     pub faces: Vec<Face>,
+    /// The corners of every face, face after face (one array: a million faces are not a million
+    /// allocations).
+    pub corners: Vec<FaceCorner>,
     /// `o`, `g`, `s`, `usemtl` as they were for each face ([`Face::state`]).
     pub states: Vec<State>,
     /// `mtllib` arguments, in file order.
     pub mtllibs: Vec<String>,
 }
 
-/// One `f` line.
-#[derive(Debug, Clone)]
+/// One `f` line: its corners are `Detail::corners[first..first + len]`.
+#[derive(Debug, Clone, Copy)]
 pub(crate) struct Face {
-    /// (v, vt, vn) of each corner, 0-based; a `vt`/`vn` that is absent or out of range is `None`.
-    pub corners: Vec<(u32, Option<u32>, Option<u32>)>,
+    pub first: u32,
+    pub len: u32,
     /// Index into [`Detail::states`].
     pub state: u32,
+}
+
+/// (v, vt, vn) of a face corner, 0-based; a `vt`/`vn` that is absent or out of range is `None`.
+pub(crate) type FaceCorner = (u32, Option<u32>, Option<u32>);
+
+impl Detail {
+    /// The corners of face `f`.
+    pub fn corners(&self, f: usize) -> &[FaceCorner] {
+        let face = self.faces[f];
+        &self.corners[face.first as usize..(face.first + face.len) as usize]
+    }
 }
 
 /// The grouping statements in force (the text after the keyword).
@@ -127,7 +168,7 @@ pub(crate) struct State {
     pub material: Option<String>,
 }
 
-/// Reads the file's one mesh with the [`Detail`] a writer needs.
+/// Reads the file's one mesh with the [`Detail`] a writer needs (no `.mtl` is looked at).
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
     super::check_file(path, &cx.limits)?;
     let bytes = std::fs::read(path)?;
@@ -288,17 +329,20 @@ impl Parser<'_> {
             (0..n as i64).contains(&i).then_some(i as u32)
         };
         let (nt, nn) = (detail.texcoords.len(), detail.normals.len());
-        let corners = words
-            .zip(&self.poly)
-            .map(|(w, &v)| {
-                let mut parts = w.split('/').skip(1);
-                let vt = resolve(parts.next(), nt);
-                let vn = resolve(parts.next(), nn);
-                (v, vt, vn)
-            })
-            .collect();
+        let first = detail.corners.len();
+        detail.corners.extend(words.zip(&self.poly).map(|(w, &v)| {
+            // Most files have `v` or `v/vt/vn` words; a plain `v` has nothing more to read.
+            let Some((_, rest)) = w.split_once('/') else {
+                return (v, None, None);
+            };
+            let mut parts = rest.split('/');
+            let vt = resolve(parts.next(), nt);
+            let vn = resolve(parts.next(), nn);
+            (v, vt, vn)
+        }));
         detail.faces.push(Face {
-            corners,
+            first: first as u32,
+            len: (detail.corners.len() - first) as u32,
             state: (detail.states.len() - 1) as u32,
         });
     }

@@ -17,12 +17,33 @@ use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::mesh::Mesh;
-use crate::weld::{weld, INVALID};
+use crate::weld::{weld, Welded, INVALID};
 
 const UNSET: u32 = u32::MAX;
 
 /// Computes every topological fact of SPEC sections 3-8 for one mesh.
 pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
+    analyse_keeping(mesh, options).0
+}
+
+/// What an analysis builds that a repair of the same mesh builds again: the weld and the Corner
+/// Table. A scan that repairs keeps them ([`analyse_keeping`]) and hands them to
+/// [`crate::repair::plan_with`], which otherwise welds and builds the table itself.
+#[derive(Debug)]
+pub struct Built {
+    /// The weld tolerance these were built with.
+    pub tolerance: f64,
+    pub welded: Welded,
+    /// The table of the faces that can be in one (valid, not degenerate), by lowest vertex.
+    pub table: CornerTable,
+    /// The input face of every table face.
+    pub source: Vec<u32>,
+    /// Whether the table has no non-manifold edge or vertex.
+    pub manifold: bool,
+}
+
+/// [`analyse`], keeping what it built.
+pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     let welded = weld(&mesh.positions, options.weld_tolerance);
     let points = &welded.positions;
     let mut a = Analysis {
@@ -155,7 +176,14 @@ pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
     };
     a.shells = shells(&faces, &component_of, &components, &fans.fans);
     a.components = components;
-    a
+    let built = Built {
+        tolerance: options.weld_tolerance,
+        welded,
+        table,
+        source,
+        manifold: a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0,
+    };
+    (a, built)
 }
 
 /// Faces linked through manifold edges, each face with a parity: flipping the faces with parity

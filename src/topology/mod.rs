@@ -6,7 +6,7 @@ pub(crate) mod analyse;
 pub(crate) mod nesting;
 mod places;
 
-pub use analyse::analyse;
+pub use analyse::{analyse, analyse_keeping, Built};
 pub use places::{places, Places};
 
 /// How the analysis welds vertices (SPEC 3).

@@ -65,17 +65,20 @@ pub fn write_repaired(
     out: &Path,
     cx: &ReadContext,
 ) -> Result<Vec<PathBuf>, WriteError> {
-    write_copy(source, format, plans, out, cx).map(|w| w.files)
+    write_copy(source, format, plans, out, cx, None).map(|w| w.files)
 }
 
 /// [`write_repaired`], with the writer's notes. Every file it writes is `out` or lies in `out`'s
-/// folder or below it.
+/// folder or below it. `retained` is what the scan's read kept of the source
+/// ([`super::read_retaining`]; the meshes the plans were made for are that read's): the writer
+/// then does not read the source again.
 pub fn write_copy(
     source: &Path,
     format: Format,
     plans: &[Option<Plan>],
     out: &Path,
     cx: &ReadContext,
+    retained: Option<(&Mesh, super::Retained)>,
 ) -> Result<Written, WriteError> {
     let same = match (source.canonicalize(), out.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
@@ -107,9 +110,12 @@ pub fn write_copy(
         notes: Vec::new(),
     };
     match format {
-        Format::Obj => written
-            .files
-            .extend(obj::write(source, single()?, out, cx)?),
+        Format::Obj => {
+            let kept = retained.and_then(|(mesh, r)| Some((mesh, r.obj()?)));
+            written
+                .files
+                .extend(obj::write(source, single()?, out, cx, kept)?)
+        }
         Format::Stl => stl::write(source, single()?, out, cx)?,
         Format::Ply => written.notes = ply::write(source, single()?, out, cx)?,
         Format::Off => off::write(source, single()?, out, cx)?,
@@ -190,9 +196,13 @@ pub(crate) struct Polygons {
 }
 
 impl Polygons {
-    /// `faces` lists each polygon's vertices; they were split in order, `n - 2` triangles each
-    /// (none under 3), by the same code that splits them here.
-    pub fn new(faces: impl Iterator<Item = Vec<u32>>, mesh: &Mesh) -> Result<Polygons, WriteError> {
+    /// `face(f, out)` puts the vertices of polygon `f` (of `count`) in `out`; they were split in
+    /// order, `n - 2` triangles each (none under 3), by the same code that splits them here.
+    pub fn new(
+        count: usize,
+        mut face: impl FnMut(usize, &mut Vec<u32>),
+        mesh: &Mesh,
+    ) -> Result<Polygons, WriteError> {
         let mut p = Polygons {
             first: Vec::new(),
             count: Vec::new(),
@@ -201,7 +211,10 @@ impl Polygons {
             fan: Vec::new(),
         };
         let mut local = Vec::new();
-        for (f, poly) in faces.enumerate() {
+        let mut poly = Vec::new();
+        for f in 0..count {
+            poly.clear();
+            face(f, &mut poly);
             let first = p.of_triangle.len();
             local.clear();
             local_triangles(&poly, &mesh.positions, &mut local);
@@ -296,6 +309,11 @@ impl Polygons {
 /// The triangles `polygon::triangulate` makes of `poly`, as corner numbers of the polygon.
 pub(crate) fn local_triangles(poly: &[u32], positions: &[[f64; 3]], out: &mut Vec<[u32; 3]>) {
     let n = poly.len() as u32;
+    if n == 3 {
+        // What `triangulate` does with a triangle, without its two allocations.
+        out.push([0, 1, 2]);
+        return;
+    }
     let corners: Vec<u32> = (0..n).collect();
     // An index out of range makes the reader's split a fan; an empty list does the same here.
     let points: Option<Vec<[f64; 3]>> = poly
@@ -372,5 +390,21 @@ pub(crate) fn normal_sums<K: std::hash::Hash + Eq + Copy>(
 
 /// A number as the shortest text that reads back as the same value (`1` for 1.0).
 pub(crate) fn number(x: f64) -> String {
-    format!("{x}")
+    let mut s = String::new();
+    push_number(&mut s, x);
+    s
+}
+
+/// Appends [`number`]`(x)`: the shortest round-trip digits (ryu, several times faster than
+/// `format!`, which matters for a million vertices), written without a trailing `.0`, so `1` for
+/// 1.0, `0.1` for 0.1 and `1e-7` for 1e-7. NaN and infinities as Rust writes them.
+pub(crate) fn push_number(out: &mut String, x: f64) {
+    let mut buffer = ryu::Buffer::new();
+    let text = buffer.format(x);
+    out.push_str(text.strip_suffix(".0").unwrap_or(text));
+}
+
+/// Appends the decimal text of `n`.
+pub(crate) fn push_int(out: &mut String, n: impl itoa::Integer) {
+    out.push_str(itoa::Buffer::new().format(n));
 }

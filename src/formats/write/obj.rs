@@ -9,37 +9,49 @@
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
-use super::{normal_sums, polygon_corner, renumber, write_atomic, Item, Polygons, WriteError};
-use crate::formats::obj::{read_full, State};
+use super::{
+    normal_sums, polygon_corner, push_int, push_number, renumber, write_atomic, Item, Polygons,
+    WriteError,
+};
+use crate::formats::obj::{read_full, Detail, State};
 use crate::formats::ReadContext;
+use crate::mesh::Mesh;
 use crate::repair::Plan;
 
+/// `kept`: the mesh and detail the scan's read kept of `source`; without them the source is read
+/// again.
 pub fn write(
     source: &Path,
     plan: &Plan,
     out: &Path,
     cx: &ReadContext,
+    kept: Option<(&Mesh, Box<Detail>)>,
 ) -> Result<Vec<PathBuf>, WriteError> {
-    let (mesh, detail) = read_full(source, cx)?;
+    let read;
+    let (mesh, detail): (&Mesh, &Detail) = match &kept {
+        Some((mesh, detail)) => (mesh, detail),
+        None => {
+            read = read_full(source, cx)?;
+            (&read.0, &read.1)
+        }
+    };
     let polygons = Polygons::new(
-        detail
-            .faces
-            .iter()
-            .map(|f| f.corners.iter().map(|c| c.0).collect()),
-        &mesh,
+        detail.faces.len(),
+        |f, out| out.extend(detail.corners(f).iter().map(|c| c.0)),
+        mesh,
     )?;
-    let items = polygons.items(plan, &mesh);
+    let items = polygons.items(plan, mesh);
     let (index, _) = renumber(plan);
 
     // The (v, vt, vn) of input corner `c`.
     let corner_of = |c: u32| -> (Option<u32>, Option<u32>) {
         let (f, k) = polygons.corner(c);
-        let corner = detail.faces[f].corners[k];
+        let corner = detail.corners(f)[k];
         (corner.1, corner.2)
     };
 
     // Normals a flipped face's corners disagree with get a negated copy.
-    let sums = normal_sums(plan, &mesh, |c| {
+    let sums = normal_sums(plan, mesh, |c| {
         corner_of(c.from).1.map(|vn| (c.vertex, vn))
     });
     let mut extra_normals: Vec<String> = Vec::new();
@@ -83,20 +95,27 @@ pub fn write(
         .collect();
     ordered.sort_by_key(|&(block, k, _)| (block, k));
 
-    let mut faces = String::new();
+    let mut faces = String::with_capacity(16 * ordered.len());
     let mut state = State::default();
+    // Indices as 1-based text (itoa: `write!` costs several times more over a million faces).
     let mut corner_text = |faces: &mut String, v: u32, vt: Option<u32>, vn: Option<u32>| {
-        let _ = write!(faces, " {}", index[v as usize] + 1);
+        faces.push(' ');
+        push_int(faces, u64::from(index[v as usize]) + 1);
         match (vt, vn) {
             (None, None) => {}
             (Some(t), None) => {
-                let _ = write!(faces, "/{}", t + 1);
+                faces.push('/');
+                push_int(faces, u64::from(t) + 1);
             }
             (None, Some(n)) => {
-                let _ = write!(faces, "//{}", flip_normal(v, n) + 1);
+                faces.push_str("//");
+                push_int(faces, u64::from(flip_normal(v, n)) + 1);
             }
             (Some(t), Some(n)) => {
-                let _ = write!(faces, "/{}/{}", t + 1, flip_normal(v, n) + 1);
+                faces.push('/');
+                push_int(faces, u64::from(t) + 1);
+                faces.push('/');
+                push_int(faces, u64::from(flip_normal(v, n)) + 1);
             }
         }
     };
@@ -106,7 +125,7 @@ pub fn write(
         faces.push('f');
         match item {
             Item::Polygon { face, reversed } => {
-                let corners = &detail.faces[face].corners;
+                let corners = detail.corners(face);
                 let n = corners.len();
                 for k in 0..n {
                     let (v, vt, vn) = corners[polygon_corner(n, k, reversed)];
@@ -123,7 +142,7 @@ pub fn write(
         faces.push('\n');
     }
 
-    let mut text = String::with_capacity(faces.len() * 2);
+    let mut text = String::with_capacity(faces.len() + 40 * plan.used_vertices.len());
     text.push_str("# repaired by meshvet");
     if plan.changes() {
         let _ = write!(text, ": {}", plan.summary());
@@ -136,15 +155,13 @@ pub fn write(
         if !used {
             continue;
         }
-        let p = plan.position(&mesh, v as u32);
-        let from = super::original(plan, &mesh, v as u32) as usize;
-        let _ = write!(
-            text,
-            "v {} {} {}",
-            super::number(p[0]),
-            super::number(p[1]),
-            super::number(p[2])
-        );
+        let p = plan.position(mesh, v as u32);
+        let from = super::original(plan, mesh, v as u32) as usize;
+        text.push('v');
+        for x in p {
+            text.push(' ');
+            push_number(&mut text, x);
+        }
         match detail.vertex_extra.get(from) {
             Some(extra) if !extra.is_empty() => {
                 let _ = writeln!(text, " {extra}");

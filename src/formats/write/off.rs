@@ -15,7 +15,11 @@ use crate::repair::Plan;
 
 pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
     let (mesh, detail) = read_full(source, cx)?;
-    let polygons = Polygons::new(detail.faces.iter().cloned(), &mesh)?;
+    let polygons = Polygons::new(
+        detail.faces.len(),
+        |f, out| out.extend_from_slice(&detail.faces[f]),
+        &mesh,
+    )?;
     let items = polygons.items(plan, &mesh);
     let (index, kept) = renumber(plan);
     // `[ST][C][N][4]OFF`: normals come right after x y z (after w in 4OFF, which is rare).

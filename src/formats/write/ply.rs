@@ -72,9 +72,9 @@ pub fn write(
     let polygons = match face_element {
         Some(e) => {
             let slot = index_slot(e).unwrap_or(0);
-            Polygons::new((0..e.def.count).map(|i| list(e, i, slot)), &mesh)?
+            Polygons::new(e.def.count, |i, out| list_into(e, i, slot, out), &mesh)?
         }
-        None => Polygons::new(std::iter::empty(), &mesh)?,
+        None => Polygons::new(0, |_, _| {}, &mesh)?,
     };
     let items = polygons.items(plan, &mesh);
     let (index, kept) = renumber(plan);
@@ -386,6 +386,13 @@ fn per_corner(
 
 /// The integer list in property slot `slot` of record `i`.
 fn list(e: &Element, i: usize, slot: usize) -> Vec<u32> {
+    let mut out = Vec::new();
+    list_into(e, i, slot, &mut out);
+    out
+}
+
+/// Appends the vertex indices of face `i` (its list in property `slot`) to `out`.
+fn list_into(e: &Element, i: usize, slot: usize, out: &mut Vec<u32>) {
     let r = e.record(i);
     let mut at = 0;
     for (k, (_, p)) in e.def.properties.iter().enumerate() {
@@ -394,11 +401,11 @@ fn list(e: &Element, i: usize, slot: usize) -> Vec<u32> {
             PropertyType::List(..) => 1 + r[at] as usize,
         };
         if k == slot {
-            return r[at + 1..at + width].iter().map(|&x| x as u32).collect();
+            out.extend(r[at + 1..at + width].iter().map(|&x| x as u32));
+            return;
         }
         at += width;
     }
-    Vec::new()
 }
 
 /// The index in `record` of the value of scalar property slot `slot`.
