@@ -408,3 +408,42 @@ pub(crate) fn push_number(out: &mut String, x: f64) {
 pub(crate) fn push_int(out: &mut String, n: impl itoa::Integer) {
     out.push_str(itoa::Buffer::new().format(n));
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Number text reads back as the very same value, with no `.0` on whole numbers, for values
+    /// where the shortest text uses an exponent too.
+    #[test]
+    fn numbers_read_back_exactly() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.0,
+            0.1,
+            1.0 / 3.0,
+            f64::from(0.1f32),
+            1e-7,
+            1.5e-300,
+            1e16,
+            123456789.0,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+        ];
+        for x in values {
+            let text = number(x);
+            let back: f64 = text.parse().unwrap();
+            assert_eq!(back.to_bits(), x.to_bits(), "{x} wrote {text}");
+            assert!(!text.ends_with(".0"), "{text}");
+        }
+        assert_eq!(number(1.0), "1");
+        assert_eq!(number(-0.5), "-0.5");
+        assert_eq!(number(f64::NAN), "NaN");
+        assert_eq!(number(f64::NEG_INFINITY), "-inf");
+        let mut s = String::new();
+        push_int(&mut s, 4_294_967_296u64);
+        assert_eq!(s, "4294967296");
+    }
+}
