@@ -2,7 +2,9 @@
 //! result in the source's format, keeping every attribute the file carries.
 //!
 //! A writer re-reads the source with its reader's "full" read (the readers are deterministic, so
-//! the plan's input vertices and corners line up with what the full read returns), then writes
+//! the plan's input vertices and corners line up with what the full read returns), unless the
+//! scan's read kept what it needs ([`super::read_retaining`]: OBJ, whose second parse cost more
+//! than the rest of the copy), then writes
 //! the copy to a temporary file in the output folder and renames it: a crash leaves no half-written
 //! copy, and the source is never opened for writing. Helpers shared by the polygon formats live
 //! here: which source polygons survive whole, vertex renumbering and the normal check.
