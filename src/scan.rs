@@ -208,18 +208,17 @@ fn judge(
         }]);
     }
     let options = settings.options();
-    // ... and each analysis's weld and table, for the repair planner.
+    // ... and the weld and table of each mesh it will repair, for the repair planner.
     let mut built: Vec<Option<Built>> = Vec::new();
     let outcomes = meshes
         .iter()
         .map(|mesh| {
             let start = Instant::now();
-            let analysis = if repairing {
+            let (analysis, kept) = if repairing {
                 let (analysis, kept) = analyse_keeping(mesh, &options);
-                built.push(Some(kept));
-                analysis
+                (analysis, Some(kept))
             } else {
-                analyse(mesh, &options)
+                (analyse(mesh, &options), None)
             };
             let (status, findings) = if mesh.triangles.is_empty() {
                 (Status::Empty, Vec::new())
@@ -227,6 +226,8 @@ fn judge(
                 let findings = rules::check(&analysis, &MeshFacts::of(mesh), &settings.severities);
                 (Status::of(&findings), findings)
             };
+            // A mesh without findings is not repaired: its table goes now.
+            built.push(kept.filter(|_| !findings.is_empty()));
             let mut notes = mesh.notes.clone();
             if status == Status::Empty {
                 notes.insert(0, "no triangles".to_owned());
