@@ -22,14 +22,14 @@
 
 use std::rc::Rc;
 
-use robust::{orient2d, Coord};
+use robust::orient2d;
 use rustc_hash::FxHashMap;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::formats::polygon::{triangulate, Split};
+use crate::formats::polygon::{project, triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::{find, is_flat, union, vertex_order, Built};
-use crate::topology::nesting::{depths, ShellGeometry};
+use crate::topology::nesting::{depths, segments_touch, ShellGeometry};
 use crate::weld::{weld, INVALID};
 
 /// Which repairs run.
@@ -1053,52 +1053,10 @@ fn keep_pair(table: &CornerTable, corners: &[u32]) -> (u32, u32) {
 /// (zero Newell normal) or a non-finite coordinate. O(n^2) for n edges (holes are small).
 fn simple_in_plane(ring: &[u32], points: &[[f64; 3]]) -> bool {
     let n = ring.len();
-    let Some(p3): Option<Vec<[f64; 3]>> = ring
-        .iter()
-        .map(|&v| points.get(v as usize).copied())
-        .collect()
-    else {
+    // The splitter's projection (mirrored when that makes it counter-clockwise, which changes
+    // nothing here).
+    let Some(p) = project(ring, points) else {
         return false;
-    };
-    if p3.iter().flatten().any(|x| !x.is_finite()) {
-        return false;
-    }
-    let mut normal = [0.0f64; 3];
-    for k in 0..n {
-        let (a, b) = (p3[k], p3[(k + 1) % n]);
-        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
-    let abs = normal.map(f64::abs);
-    if abs.iter().all(|&c| c == 0.0) || !abs.iter().all(|c| c.is_finite()) {
-        return false;
-    }
-    let axis = if abs[0] >= abs[1] && abs[0] >= abs[2] {
-        0
-    } else if abs[1] >= abs[2] {
-        1
-    } else {
-        2
-    };
-    let (u, w) = [(1, 2), (2, 0), (0, 1)][axis];
-    let p: Vec<Coord<f64>> = p3.iter().map(|q| Coord { x: q[u], y: q[w] }).collect();
-    let on_segment = |a: Coord<f64>, b: Coord<f64>, c: Coord<f64>| {
-        c.x >= a.x.min(b.x) && c.x <= a.x.max(b.x) && c.y >= a.y.min(b.y) && c.y <= a.y.max(b.y)
-    };
-    // Whether segments ab and cd share a point.
-    let meet = |a: Coord<f64>, b: Coord<f64>, c: Coord<f64>, d: Coord<f64>| {
-        let (d1, d2) = (orient2d(a, b, c), orient2d(a, b, d));
-        let (d3, d4) = (orient2d(c, d, a), orient2d(c, d, b));
-        if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
-            && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
-        {
-            return true;
-        }
-        (d1 == 0.0 && on_segment(a, b, c))
-            || (d2 == 0.0 && on_segment(a, b, d))
-            || (d3 == 0.0 && on_segment(c, d, a))
-            || (d4 == 0.0 && on_segment(c, d, b))
     };
     for i in 0..n {
         let (a, b) = (p[i], p[(i + 1) % n]);
@@ -1114,7 +1072,7 @@ fn simple_in_plane(ring: &[u32], points: &[[f64; 3]]) -> bool {
             if i == 0 && j == n - 1 {
                 continue; // neighbours across the loop's start
             }
-            if meet(a, b, p[j], p[(j + 1) % n]) {
+            if segments_touch(a, b, p[j], p[(j + 1) % n]) {
                 return false;
             }
         }

@@ -74,7 +74,7 @@ fn fan(poly: &[u32], out: &mut Vec<[u32; 3]>) {
 
 /// The polygon in 2D, oriented counter-clockwise (positive area), or `None` when it has a
 /// non-finite coordinate, an index out of range or no usable plane (zero Newell normal).
-fn project(poly: &[u32], positions: &[[f64; 3]]) -> Option<Vec<Coord<f64>>> {
+pub(crate) fn project(poly: &[u32], positions: &[[f64; 3]]) -> Option<Vec<Coord<f64>>> {
     let mut pts = Vec::with_capacity(poly.len());
     for &i in poly {
         let p = *positions.get(i as usize)?;

@@ -264,7 +264,12 @@ fn coplanar_segment_meets_triangle(
 }
 
 /// Whether closed segments `p1 p2` and `p3 p4` share a point (exact).
-fn segments_touch(p1: Coord<f64>, p2: Coord<f64>, p3: Coord<f64>, p4: Coord<f64>) -> bool {
+pub(crate) fn segments_touch(
+    p1: Coord<f64>,
+    p2: Coord<f64>,
+    p3: Coord<f64>,
+    p4: Coord<f64>,
+) -> bool {
     let d1 = orient2d(p1, p2, p3);
     let d2 = orient2d(p1, p2, p4);
     let d3 = orient2d(p3, p4, p1);
