@@ -51,9 +51,7 @@ pub fn write(
     };
 
     // Normals a flipped face's corners disagree with get a negated copy.
-    let sums = normal_sums(plan, mesh, |c| {
-        corner_of(c.from).1.map(|vn| (c.vertex, vn))
-    });
+    let sums = normal_sums(plan, mesh, |c| corner_of(c.from).1.map(|vn| (c.vertex, vn)));
     let mut extra_normals: Vec<String> = Vec::new();
     let mut negated: rustc_hash::FxHashMap<u32, u32> = Default::default();
     let mut flip_normal = |vertex: u32, vn: u32| -> u32 {
