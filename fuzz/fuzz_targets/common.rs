@@ -1,12 +1,13 @@
 //! Shared by every target: write the input to a file of the right extension in a per-process folder,
-//! read it through `meshvet::formats::read`, then weld and analyse every mesh. No `catch_unwind`: a
-//! panic anywhere is a finding.
+//! read it through `meshvet::formats::read`, then weld and analyse every mesh, then repair it as
+//! `scan --repair-dir` does (plan, write the copy). No `catch_unwind`: a panic anywhere is a finding.
 
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use meshvet::formats::{read, Format, Limits, ReadContext};
-use meshvet::topology::Options;
+use meshvet::formats::write::write_copy;
+use meshvet::formats::{read, read_retaining, Format, Limits, ReadContext};
+use meshvet::topology::{analyse_keeping, Options};
 
 /// Small enough that a hostile header count is refused long before libFuzzer's 256 MB malloc limit.
 fn context(root: PathBuf) -> ReadContext {
@@ -51,5 +52,34 @@ pub fn run(format: Format, data: &[u8]) {
             meshvet::analyse(mesh, &Options::default());
             meshvet::weld::weld(&mesh.positions, 1e-3);
         }
+        repair(format, &path, &meshes, &cx);
+    }
+}
+
+/// What `scan --repair-dir` does with the file: a read that keeps the writer's detail (the same
+/// meshes), plans from the analysis's table (the same plan as from scratch), and the copy.
+fn repair(format: Format, path: &std::path::Path, meshes: &[meshvet::Mesh], cx: &ReadContext) {
+    let (again, retained) = read_retaining(path, format, cx).expect("read_retaining reads what read reads");
+    // Compared as text: a NaN coordinate is not equal to itself.
+    assert_eq!(format!("{again:?}"), format!("{meshes:?}"), "read_retaining returned other meshes");
+    let options = meshvet::repair::Options::default();
+    let plans: Vec<_> = meshes
+        .iter()
+        .map(|mesh| {
+            let (_, built) = analyse_keeping(mesh, &Options::default());
+            let plan = meshvet::repair::plan_with(mesh, &options, Some(built));
+            let fresh = meshvet::repair::plan(mesh, &options);
+            assert_eq!(format!("{plan:?}"), format!("{fresh:?}"), "the plan depends on its table's origin");
+            Some(plan).filter(|p| p.changes())
+        })
+        .collect();
+    if plans.iter().any(Option::is_some) {
+        let out = folder().join("copy").join(path.file_name().expect("a file name"));
+        let retained = match (retained, meshes) {
+            (Some(r), [mesh]) => Some((mesh, r)),
+            _ => None,
+        };
+        // A copy that cannot be written is an error row, not a finding; a panic is.
+        let _ = write_copy(path, format, &plans, &out, cx, retained);
     }
 }
