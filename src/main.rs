@@ -251,6 +251,11 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         written
     });
     bar.finish_and_clear();
+    // Written out (and compacted) before anything can fail: the entries are this run's work.
+    let cache = cache.map(|cache| {
+        let stats = cache.stats();
+        (stats, cache.finish().err())
+    });
     written.map_err(|e| e.to_string())?;
     reports.finish(started.elapsed())?;
     if let (Some(page), Some(path)) = (&mut html, &args.html) {
@@ -305,8 +310,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         }
         if !args.quiet {
             lines.push(summary.line(started.elapsed().as_secs_f64()));
-            if let (Some(cache), Some(dir)) = (&cache, &args.cache) {
-                let stats = cache.stats();
+            if let (Some((stats, unsaved)), Some(dir)) = (&cache, &args.cache) {
                 let mut line = format!(
                     "cache {}: {} files reused, {} read",
                     dir.display(),
@@ -318,6 +322,9 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
                         "{line} ({} entries could not be written)",
                         stats.write_errors
                     );
+                }
+                if let Some(e) = unsaved {
+                    line = format!("{line} (not all saved: {e})");
                 }
                 lines.push(line);
             }

@@ -349,6 +349,22 @@ fn junit_has_one_suite_a_case_per_mesh_and_the_right_counts() {
     assert_eq!(names.len(), 1, "no temporary file left");
 }
 
+/// The pack files of the cache folder `DIR/cache`.
+fn cache_packs(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut packs: Vec<_> = std::fs::read_dir(dir.join("cache"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("pack-")
+        })
+        .collect();
+    packs.sort();
+    packs
+}
+
 #[test]
 fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
     let dir = scan_tree();
@@ -374,17 +390,28 @@ fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
     assert_eq!(without_millis(&warm.stdout), without_millis(&cold.stdout));
     assert_eq!(warm.code, cold.code);
 
-    // Damage every entry: each is recomputed, the report is unchanged.
-    let mut entries = 0;
-    for folder in std::fs::read_dir(dir.path().join("cache")).unwrap() {
-        for entry in std::fs::read_dir(folder.unwrap().path()).unwrap() {
-            let path = entry.unwrap().path();
-            let bytes = std::fs::read(&path).unwrap();
-            std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
-            entries += 1;
+    // Damage every record (one byte of its header line) and leave a torn record at the end of a
+    // pack: each entry is recomputed, the report is unchanged. (The warm run refreshed the stamps
+    // of files changed so recently, in a second pack.)
+    let marker = [0xF5, b'm', b'v', b'3'];
+    let mut records = 0;
+    let mut size = 0;
+    for pack in cache_packs(dir.path()) {
+        let mut bytes = std::fs::read(&pack).unwrap();
+        let starts: Vec<usize> = (0..bytes.len() - 4)
+            .filter(|&i| bytes[i..i + 4] == marker)
+            .collect();
+        for &at in &starts {
+            assert_eq!(&bytes[at + 20..at + 33], b"meshvet-cache");
+            bytes[at + 25] ^= 1;
         }
+        records += starts.len();
+        bytes.extend_from_slice(&marker);
+        bytes.extend_from_slice(&[7; 30]);
+        size += bytes.len();
+        std::fs::write(&pack, &bytes).unwrap();
     }
-    assert_eq!(entries, 6);
+    assert_eq!(records, 12);
     let damaged = meshvet(dir.path(), &args);
     assert!(
         damaged.stderr.contains("0 files reused, 7 read"),
@@ -394,6 +421,16 @@ fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
     assert_eq!(
         without_millis(&damaged.stdout),
         without_millis(&cold.stdout)
+    );
+    // That run had the folder to itself and found damage: one clean pack is left.
+    let packs = cache_packs(dir.path());
+    assert_eq!(packs.len(), 1);
+    assert!(std::fs::read(&packs[0]).unwrap().len() < size);
+    let again = meshvet(dir.path(), &args);
+    assert!(
+        again.stderr.contains("6 files reused, 1 read"),
+        "{}",
+        again.stderr
     );
 
     // A changed file and a new dependency are read again; the rest still comes from the cache.
@@ -410,6 +447,59 @@ fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
         without_millis(&changed.stdout),
         without_millis(&fresh.stdout)
     );
+}
+
+/// Shards on one machine share a cache folder: each run writes a pack of its own while the others
+/// read theirs, none removes a pack another has open, and a later whole scan reuses every entry.
+#[test]
+fn shards_running_at_once_share_one_cache() {
+    let dir = tree(&[]);
+    for i in 0..60 {
+        let text = [TETRA, INSIDE_OUT, TRIANGLE, FIN][i % 4];
+        write(
+            dir.path(),
+            &format!("lib/d{}/m{i:02}.obj", i % 5),
+            text.as_bytes(),
+        );
+    }
+    let whole = meshvet(dir.path(), &["scan", "lib", "--csv", "whole.csv"]);
+    // Twice: the second round's shards find the first round's packs (and may compact them).
+    for round in 0..2 {
+        let handles: Vec<_> = (1..=3)
+            .map(|k| {
+                Command::new(env!("CARGO_BIN_EXE_meshvet"))
+                    .args(["scan", "lib", "--cache", "cache", "--shard"])
+                    .arg(format!("{k}/3"))
+                    .arg("--csv")
+                    .arg(format!("shard{k}.csv"))
+                    .current_dir(dir.path())
+                    .stdin(Stdio::null())
+                    .stdout(Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for handle in handles {
+            let out = handle.wait_with_output().unwrap();
+            assert!(out.status.code().unwrap() <= 1, "round {round}");
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(!stdout.contains("not all saved"), "{stdout}");
+        }
+    }
+    let all = meshvet(
+        dir.path(),
+        &["scan", "lib", "--cache", "cache", "--csv", "cached.csv"],
+    );
+    assert!(
+        all.stdout.contains("60 files reused, 0 read"),
+        "{}",
+        all.stdout
+    );
+    assert_eq!(
+        without_millis(&read(dir.path(), "cached.csv")),
+        without_millis(&read(dir.path(), "whole.csv"))
+    );
+    assert_eq!(whole.code, all.code);
 }
 
 #[test]
