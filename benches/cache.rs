@@ -1,7 +1,8 @@
 //! Cache benchmark (issue 5): a generated tree of 5,000 small files (OBJ and binary STL tori of
 //! 200 to 3,000 triangles), scanned without a cache, then with `--cache` cold (empty folder) and
-//! warm (the tree unchanged). Each run is a whole scan as the binary does it: walk, scan on 2
-//! threads, every row serialized to CSV (in memory).
+//! warm (the tree unchanged). Each run is a whole scan as the binary does it: open the cache (which
+//! reads its packs), walk, scan on 2 threads, every row serialized to CSV (in memory), finish the
+//! cache (write out its pack).
 //!
 //!     cargo bench --bench cache
 
@@ -10,7 +11,7 @@ use std::fs;
 use std::path::Path;
 use std::time::Instant;
 
-use meshvet::cache::Cache;
+use meshvet::cache::{Cache, Stats};
 use meshvet::config::Settings;
 use meshvet::report::Row;
 use meshvet::scan;
@@ -33,19 +34,21 @@ fn main() {
         ..Settings::default()
     };
 
-    let (plain, plain_csv) = run(&tree, &settings, None);
+    let (plain, plain_csv, _) = run(&tree, &settings, None);
     println!("  no cache:       {plain:.2} s");
     let cache_dir = dir.path().join("cache");
-    let cache = Cache::open(&cache_dir, &settings).unwrap();
-    let (cold, cold_csv) = run(&tree, &settings, Some(&cache));
-    println!("  cache, cold:    {cold:.2} s  ({:?})", cache.stats());
+    let (cold, cold_csv, stats) = run(&tree, &settings, Some(&cache_dir));
+    println!("  cache, cold:    {cold:.2} s  ({stats:?})");
+    println!(
+        "  cache folder:   {:.1} MB",
+        folder_bytes(&cache_dir) as f64 / 1e6
+    );
     let mut warm = f64::INFINITY;
     let mut warm_csv = String::new();
     let mut stats = Default::default();
     for _ in 0..3 {
-        let cache = Cache::open(&cache_dir, &settings).unwrap();
-        let (seconds, csv) = run(&tree, &settings, Some(&cache));
-        stats = cache.stats();
+        let (seconds, csv, run_stats) = run(&tree, &settings, Some(&cache_dir));
+        stats = run_stats;
         assert_eq!(stats.misses, 0, "every file comes from the cache");
         warm = warm.min(seconds);
         warm_csv = csv;
@@ -66,13 +69,15 @@ fn main() {
     );
 }
 
-/// One whole scan; returns its wall time and the CSV without `millis`.
-fn run(tree: &Path, settings: &Settings, cache: Option<&Cache>) -> (f64, String) {
+/// One whole scan, opening and finishing the cache in `cache` if given; returns its wall time, the
+/// CSV without `millis` and the cache's figures.
+fn run(tree: &Path, settings: &Settings, cache: Option<&Path>) -> (f64, String, Stats) {
     let start = Instant::now();
+    let cache = cache.map(|dir| Cache::open(dir, settings).unwrap());
     let sources = walk(&[tree.to_owned()], &Filter::everything());
     let per_file = |source: &Source| {
         let fresh = || scan::scan_file(source, settings);
-        match cache {
+        match &cache {
             Some(cache) => cache.outcomes(source, fresh),
             None => fresh(),
         }
@@ -86,8 +91,17 @@ fn run(tree: &Path, settings: &Settings, cache: Option<&Cache>) -> (f64, String)
         csv.serialize(row).map_err(std::io::Error::other)
     })
     .unwrap();
+    let stats = cache.map_or_else(Stats::default, |c| c.finish().unwrap());
+    let seconds = start.elapsed().as_secs_f64();
     let csv = String::from_utf8(csv.into_inner().unwrap()).unwrap();
-    (start.elapsed().as_secs_f64(), csv)
+    (seconds, csv, stats)
+}
+
+fn folder_bytes(dir: &Path) -> u64 {
+    fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().metadata().unwrap().len())
+        .sum()
 }
 
 fn write_tree(root: &Path) -> u64 {
