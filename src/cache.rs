@@ -16,14 +16,14 @@
 //! identity - its path and scanned root, with the current folder when relative, and its report
 //! path -, the body's length, and a check of those two) followed by the entry's body. Opening the
 //! cache reads every pack once, in name order, and keeps only an index: for each identity, where
-//! its latest record is (24 bytes a file, no payload). A hit reads its record with a positioned
-//! read, which also reads ahead: files are looked up in the order the last run wrote them, so one
-//! read serves the next records too. A frame that does not check (a torn tail after a crash, bit
-//! rot, an edit) is skipped to the next marker, so damage costs the records it touches, not the
-//! rest of the pack. A run appends its misses and refreshed stamps to a pack of its own, created
-//! on its first write (a warm run writes nothing); they are seen by later runs, not by the run
-//! itself. The one-file-per-entry folders of format 2 (`DIR/xx/...`) are ignored, and removed by
-//! the next compaction.
+//! its latest record is (about 25 bytes a file, no payload). A hit reads its record with a
+//! positioned read, which also reads ahead: files are looked up in the order the last run wrote
+//! them, so one read serves the next records too. A frame that does not check (a torn tail after a
+//! crash, bit rot, an edit) is skipped to the next marker, so damage costs the records it touches,
+//! not the rest of the pack. A run appends its misses and refreshed stamps to a pack of its own,
+//! created on its first write (a warm run writes nothing); they are seen by later runs, not by the
+//! run itself. The one-file-per-entry folders of format 2 (`DIR/xx/...`) are ignored, and removed
+//! by the next compaction.
 //!
 //! **Entry.** A record's body holds a header line, a blake3 checksum of the rest, the key, the
 //! content hash, when it was written, the file's dependencies with the stamps of the file and each
@@ -108,8 +108,8 @@ pub struct Cache {
     lock: Option<File>,
     /// The packs read when opening, by number.
     packs: Vec<Pack>,
-    /// The latest record of each identity, sorted by identity.
-    index: Vec<Slot>,
+    /// The latest record of each identity.
+    index: Index,
     /// What opening found, so finishing can tell whether compaction is due without reading again.
     found: Found,
     own: Mutex<Own>,
@@ -140,6 +140,54 @@ struct Slot {
     at: u64,
     /// The whole record's length, frame included.
     len: u32,
+}
+
+/// The slots sorted by identity, and where each run of leading identity bits starts (identities
+/// are hashes, so spread evenly): a lookup looks at about two slots, and the table costs at most
+/// 2 bytes a slot.
+struct Index {
+    slots: Vec<Slot>,
+    /// `starts[b]`: the first slot whose identity's top `bits` bits are at least `b`; then the end.
+    starts: Vec<u32>,
+    bits: u32,
+}
+
+impl Index {
+    /// `slots` sorted by identity, each identity once.
+    fn new(mut slots: Vec<Slot>) -> Index {
+        slots.shrink_to_fit();
+        let bits = (slots.len() / 2).max(1).ilog2().min(24);
+        let mut starts = vec![0u32; (1 << bits) + 1];
+        for slot in &slots {
+            starts[Index::bucket(slot.id, bits) + 1] += 1;
+        }
+        for b in 1..starts.len() {
+            starts[b] += starts[b - 1];
+        }
+        Index {
+            slots,
+            starts,
+            bits,
+        }
+    }
+
+    fn bucket(id: Id, bits: u32) -> usize {
+        id.checked_shr(64 - bits).unwrap_or(0) as usize
+    }
+
+    fn get(&self, id: Id) -> Option<Slot> {
+        let b = Index::bucket(id, self.bits);
+        let (from, to) = (self.starts[b] as usize, self.starts[b + 1] as usize);
+        self.slots[from..to].iter().find(|s| s.id == id).copied()
+    }
+
+    fn len(&self) -> usize {
+        self.slots.len()
+    }
+
+    fn is_empty(&self) -> bool {
+        self.slots.is_empty()
+    }
 }
 
 impl Slot {
@@ -398,8 +446,7 @@ impl Cache {
 
     /// The indexed record of `id`, if it can be read and its frame names `id`.
     fn record(&self, id: &Id) -> Option<Vec<u8>> {
-        let i = self.index.binary_search_by_key(id, |s| s.id).ok()?;
-        let slot = self.index[i];
+        let slot = self.index.get(*id)?;
         let pack = self.packs.get(slot.pack())?;
         let record = AHEAD.with_borrow_mut(|ahead| ahead.read(self.serial, slot, pack).ok())??;
         let (framed, len) = frame(&record)?;
@@ -439,7 +486,7 @@ impl Cache {
         }
         own.records += 1;
         drop(own);
-        if self.index.binary_search_by_key(id, |s| s.id).is_ok() {
+        if self.index.get(*id).is_some() {
             self.superseded.fetch_add(1, Ordering::Relaxed);
         }
         Ok(())
@@ -488,7 +535,7 @@ impl Cache {
             if !index.is_empty() {
                 let name = pack_name(found.newest);
                 let mut out = AtomicFile::create(&self.dir.join(&name))?;
-                copy_live(&packs, &index, &mut out)?;
+                copy_live(&packs, &index.slots, &mut out)?;
                 out.commit()?;
             }
             drop(packs);
@@ -852,7 +899,7 @@ fn list(dir: &Path) -> io::Result<Listing> {
 
 /// Opens and reads every pack in `dir`: the packs, the index of their latest records and what was
 /// found. A pack that cannot be opened is left out (and so never removed by compaction).
-fn load(dir: &Path) -> io::Result<(Vec<Pack>, Vec<Slot>, Found)> {
+fn load(dir: &Path) -> io::Result<(Vec<Pack>, Index, Found)> {
     let listing = list(dir)?;
     let mut found = Found {
         names: Vec::new(),
@@ -885,8 +932,7 @@ fn load(dir: &Path) -> io::Result<(Vec<Pack>, Vec<Slot>, Found)> {
     // Latest record first within each identity, then keep only it.
     slots.sort_unstable_by(|a, b| a.id.cmp(&b.id).then(b.at.cmp(&a.at)));
     slots.dedup_by_key(|s| s.id);
-    slots.shrink_to_fit();
-    Ok((packs, slots, found))
+    Ok((packs, Index::new(slots), found))
 }
 
 /// Adds the records of pack number `number` to `slots`; returns how many it has and whether it has
@@ -1121,6 +1167,15 @@ fn put_len(out: &mut Vec<u8>, n: usize) {
     out.extend_from_slice(&(n as u32).to_le_bytes());
 }
 
+/// 7 bits a byte, low first; a set top bit means more follow (a cell's length: mostly one byte).
+fn put_varint(out: &mut Vec<u8>, mut n: usize) {
+    while n >= 0x80 {
+        out.push(n as u8 | 0x80);
+        n >>= 7;
+    }
+    out.push(n as u8);
+}
+
 fn put_str(out: &mut Vec<u8>, s: &str) {
     put_len(out, s.len());
     out.extend_from_slice(s.as_bytes());
@@ -1156,6 +1211,18 @@ impl<'a> Reader<'a> {
         self.array().map(|b| u32::from_le_bytes(b) as usize)
     }
 
+    fn varint(&mut self) -> Option<usize> {
+        let mut n = 0usize;
+        for shift in (0..35).step_by(7) {
+            let byte = self.u8()?;
+            n |= usize::from(byte & 0x7f) << shift;
+            if byte < 0x80 {
+                return Some(n);
+            }
+        }
+        None
+    }
+
     fn str(&mut self) -> Option<&'a str> {
         let n = self.len()?;
         std::str::from_utf8(self.take(n)?).ok()
@@ -1181,14 +1248,11 @@ fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
             .ok_or_else(|| io::Error::other("a row wrote no CSV record"))?
             .map_err(io::Error::other)?;
         put_len(&mut out, cells.len());
-        let mut end = 0;
+        put_len(&mut out, cells.as_byte_record().as_slice().len());
         for cell in &cells {
-            end += cell.len();
-            put_len(&mut out, end);
+            put_varint(&mut out, cell.len());
         }
-        for cell in &cells {
-            out.extend_from_slice(cell.as_bytes());
-        }
+        out.extend_from_slice(cells.as_byte_record().as_slice());
         put_len(&mut out, o.findings.len());
         for f in &o.findings {
             put_str(&mut out, f.rule.name());
@@ -1220,14 +1284,17 @@ fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
     let count = r.len()?;
     let mut outcomes = Vec::with_capacity(count.min(64));
     for _ in 0..count {
-        let ends = r.len()?.checked_mul(4).and_then(|n| r.take(n))?;
-        let size = match ends.last_chunk::<4>() {
-            Some(end) => u32::from_le_bytes(*end) as usize,
-            None => 0,
-        };
+        let count = r.len()?;
+        let size = r.len()?;
+        let mut lens = Reader(r.0);
+        for _ in 0..count {
+            lens.varint()?;
+        }
+        let lens = Reader(r.take(r.0.len() - lens.0.len())?);
         let mut cells = Cells {
             text: std::str::from_utf8(r.take(size)?).ok()?,
-            ends,
+            lens,
+            left: count,
             start: 0,
         };
         let row = cells.row()?;
@@ -1272,19 +1339,19 @@ fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
     (r.0.is_empty() && !outcomes.is_empty()).then_some(outcomes)
 }
 
-/// A row's CSV cells, read in column order: one block of text and where each cell ends.
+/// A row's CSV cells, read in column order: one block of text and each cell's length.
 struct Cells<'a> {
     text: &'a str,
-    /// Little-endian `u32` ends.
-    ends: &'a [u8],
+    /// Each cell's length, as [`put_varint`] writes it.
+    lens: Reader<'a>,
+    left: usize,
     start: usize,
 }
 
 impl<'a> Cells<'a> {
     fn next(&mut self) -> Option<&'a str> {
-        let (end, rest) = self.ends.split_first_chunk::<4>()?;
-        self.ends = rest;
-        let end = u32::from_le_bytes(*end) as usize;
+        self.left = self.left.checked_sub(1)?;
+        let end = self.start.checked_add(self.lens.varint()?)?;
         let cell = self.text.get(self.start..end)?;
         self.start = end;
         Some(cell)
@@ -1360,7 +1427,7 @@ impl<'a> Cells<'a> {
             status_after: self.text()?,
             findings_after: self.text()?,
         };
-        (self.ends.is_empty() && self.start == self.text.len()).then_some(row)
+        (self.left == 0 && self.start == self.text.len()).then_some(row)
     }
 }
 
@@ -1532,9 +1599,10 @@ mod tests {
 
     /// Every record in the packs, latest last.
     fn records(dir: &Path) -> Vec<Vec<u8>> {
-        let (packs, mut index, _) = load(&dir.join("cache")).unwrap();
-        index.sort_by_key(|s| s.at);
-        index
+        let (packs, index, _) = load(&dir.join("cache")).unwrap();
+        let mut slots = index.slots;
+        slots.sort_by_key(|s| s.at);
+        slots
             .iter()
             .map(|s| {
                 let mut record = vec![0; s.len as usize];
@@ -1589,7 +1657,8 @@ mod tests {
             mesh: "m".into(),
             format: "obj".into(),
             status: Some(Status::Warn),
-            message: "1 hole".into(),
+            // Long enough that its length takes two bytes.
+            message: "1 hole; ".repeat(45),
             vertices: Some(1),
             welded_vertices: Some(2),
             faces: Some(3),
@@ -1779,6 +1848,38 @@ mod tests {
             let check = frame_check(&b[4..16]);
             b[16..20].copy_from_slice(&check.to_le_bytes());
         });
+    }
+
+    #[test]
+    fn the_index_finds_every_identity_and_no_other() {
+        for n in [0, 1, 2, 3, 5, 64, 1000, 4097] {
+            // Spread like hashes, plus the extremes.
+            let mut ids: Vec<Id> = (0..n as u64)
+                .map(|i| i.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (i << 7))
+                .collect();
+            if n > 2 {
+                ids[0] = 0;
+                ids[1] = Id::MAX;
+            }
+            ids.sort_unstable();
+            ids.dedup();
+            let slots = ids
+                .iter()
+                .map(|&id| Slot {
+                    id,
+                    at: id / 3,
+                    len: 1,
+                })
+                .collect();
+            let index = Index::new(slots);
+            assert_eq!(index.len(), ids.len());
+            for &id in &ids {
+                assert_eq!(index.get(id).map(|s| s.at), Some(id / 3), "{n}: {id}");
+                if !ids.contains(&id.wrapping_add(1)) {
+                    assert!(index.get(id.wrapping_add(1)).is_none());
+                }
+            }
+        }
     }
 
     #[test]
