@@ -76,7 +76,7 @@ use crate::topology::Role;
 use crate::walk::Source;
 
 /// First line of every entry's body; bump the number when the body changes shape.
-const HEADER: &[u8] = b"meshvet-cache 3\n";
+const HEADER: &[u8] = b"meshvet-cache 4\n";
 /// Starts every record. 0xF5 never occurs in UTF-8, so a search for the next record after damage
 /// rarely stops inside a body (and a false stop fails the frame's check).
 const MAGIC: [u8; 4] = [0xF5, b'm', b'v', b'3'];
