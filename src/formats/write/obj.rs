@@ -37,7 +37,7 @@ pub fn write(
     };
     let polygons = Polygons::new(
         detail.faces.len(),
-        |f, out| out.extend(detail.corners(f).iter().map(|c| c.0)),
+        |f, out| out.extend(detail.corners(f).iter().map(|c| c.v)),
         mesh,
     )?;
     let items = polygons.items(plan, mesh);
@@ -46,8 +46,8 @@ pub fn write(
     // The (v, vt, vn) of input corner `c`.
     let corner_of = |c: u32| -> (Option<u32>, Option<u32>) {
         let (f, k) = polygons.corner(c);
-        let corner = detail.corners(f)[k];
-        (corner.1, corner.2)
+        let (_, vt, vn) = detail.corners(f)[k].parts();
+        (vt, vn)
     };
 
     // Normals a flipped face's corners disagree with get a negated copy.
@@ -91,7 +91,10 @@ pub fn write(
             (block, if fill { usize::MAX } else { k }, item)
         })
         .collect();
-    ordered.sort_by_key(|&(block, k, _)| (block, k));
+    // Usually in order already (one block, fills last): checking is cheaper than sorting.
+    if !ordered.is_sorted_by_key(|&(block, k, _)| (block, k)) {
+        ordered.sort_by_key(|&(block, k, _)| (block, k));
+    }
 
     let mut faces = String::with_capacity(16 * ordered.len());
     let mut state = State::default();
@@ -117,16 +120,19 @@ pub fn write(
             }
         }
     };
+    let mut current_block = None;
     for &(block, _, item) in &ordered {
-        let wanted = &detail.states[block as usize];
-        switch_state(&mut faces, &mut state, wanted);
+        if current_block != Some(block) {
+            switch_state(&mut faces, &mut state, &detail.states[block as usize]);
+            current_block = Some(block);
+        }
         faces.push('f');
         match item {
             Item::Polygon { face, reversed } => {
                 let corners = detail.corners(face);
                 let n = corners.len();
                 for k in 0..n {
-                    let (v, vt, vn) = corners[polygon_corner(n, k, reversed)];
+                    let (v, vt, vn) = corners[polygon_corner(n, k, reversed)].parts();
                     corner_text(&mut faces, v, vt, vn);
                 }
             }
