@@ -248,7 +248,7 @@ fn write_glb(path: &Path, mesh: &Mesh) -> PathBuf {
         3 * mesh.triangles.len()
     )
     .into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();

@@ -1,9 +1,8 @@
-//! Files that appear whole or not at all: every report (CSV, JSON Lines, JUnit, HTML, merged CSV)
-//! and every cache entry is written to a temporary file beside its target and renamed over it when
-//! complete. A crash, a full disk or an error half-way leaves the previous file untouched and no
-//! temporary file behind (dropping an uncommitted [`AtomicFile`] removes it). Reports are also
-//! synced to the disk before the rename, so a power cut leaves the old or the whole new one; cache
-//! entries are not (a power cut may cost an entry, which is verified when read, never a wrong row).
+//! Files that appear whole or not at all: every report (CSV, JSON Lines, JUnit, HTML, merged CSV),
+//! every repaired copy and the cache's compacted pack are written to a temporary file beside their
+//! target, synced to the disk and renamed over it when complete. A crash, a full disk, a power cut
+//! or an error half-way leaves the previous file untouched or the whole new one, and no temporary
+//! file behind (dropping an uncommitted [`AtomicFile`] removes it).
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
@@ -29,27 +28,12 @@ impl AtomicFile {
         })
     }
 
-    /// Writes `bytes` to `path` atomically in one call, without waiting for the disk: for entries
-    /// that are verified when read (the cache), where a power cut may cost an entry, never a
-    /// wrong one, and thousands of `fsync`s would cost more than they save.
-    pub fn write_all(path: &Path, bytes: &[u8]) -> io::Result<()> {
-        let mut file = AtomicFile::create(path)?;
-        file.write_all(bytes)?;
-        file.put_in_place(false)
-    }
-
     /// Flushes the data to the disk and renames the temporary file over the target, so even a
     /// power cut leaves the old file or the whole new one.
-    pub fn commit(self) -> io::Result<()> {
-        self.put_in_place(true)
-    }
-
-    fn put_in_place(mut self, durable: bool) -> io::Result<()> {
+    pub fn commit(mut self) -> io::Result<()> {
         let writer = self.writer.take().expect("commit is called once");
         let file = writer.into_inner().map_err(|e| e.into_error())?;
-        if durable {
-            file.sync_all()?;
-        }
+        file.sync_all()?;
         drop(file);
         std::fs::rename(&self.temporary, &self.path)
         // On error, `drop` removes the temporary file.

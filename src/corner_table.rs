@@ -357,7 +357,7 @@ impl CornerTable {
     /// Previous corner around `t(c)`.
     #[inline]
     pub fn p(c: u32) -> u32 {
-        if c % 3 == 0 {
+        if c.is_multiple_of(3) {
             c + 2
         } else {
             c - 1

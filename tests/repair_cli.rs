@@ -295,7 +295,7 @@ fn open_box_gltf() -> (Value, Vec<u8>) {
         nor.iter().flat_map(|x| x.to_le_bytes()).collect(),
         uv.iter().flat_map(|x| x.to_le_bytes()).collect(),
     ] {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len()}));
@@ -325,11 +325,11 @@ fn open_box_gltf() -> (Value, Vec<u8>) {
 
 fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     let mut json = serde_json::to_vec(doc).unwrap();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut out = b"glTF".to_vec();

@@ -312,7 +312,7 @@ fn face_record(
                 if k == slot {
                     out.push(vertices.len() as f64);
                     out.extend(vertices.iter().map(|&v| index[v as usize] as f64));
-                } else if n_source > 0 && len > 0 && len % n_source == 0 {
+                } else if n_source > 0 && len > 0 && len.is_multiple_of(n_source) {
                     // Per-corner values: each output corner takes its own corner's values (a
                     // fill's corner, those of the neighbour face it came from). Exactly `stride`
                     // values go out per corner, so the record keeps the length it states.
@@ -370,7 +370,7 @@ fn per_corner(
             PropertyType::Scalar(_) => at += 1,
             PropertyType::List(..) => {
                 let len = source[at] as usize;
-                if j != slot && n > 0 && len > 0 && len % n == 0 {
+                if j != slot && n > 0 && len > 0 && len.is_multiple_of(n) {
                     let stride = len / n;
                     out.insert(
                         name.as_str(),
