@@ -249,6 +249,13 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
                 plural(fill.blocked)
             ));
         }
+        if fill.flat > 0 {
+            not_repairable.push(format!(
+                "{} hole{} left open: filling would close a flat open surface into a shell with no volume",
+                fill.flat,
+                plural(fill.flat)
+            ));
+        }
         if fill.no_triangulation > 0 {
             not_repairable.push(format!(
                 "{} hole{} left open: {} border crosses or folds onto itself, so a fill could overlap itself",
@@ -910,6 +917,7 @@ impl<'a> Work<'a> {
         }
         let mut traced = vec![false; table.corner_count()];
         let mut new_triangles = Vec::new();
+        let mut filled: Vec<Filled> = Vec::new();
         for &first in &border {
             if traced[first as usize] {
                 continue;
@@ -991,6 +999,13 @@ impl<'a> Work<'a> {
             let near = self.triangles[near as usize]
                 .source
                 .unwrap_or(self.triangles[near as usize].near);
+            filled.push(Filled {
+                table_face: CornerTable::t(first),
+                border_edges: loop_corners.len(),
+                triangles: new_triangles.len()..new_triangles.len() + tris.len(),
+                faces: ring.len() - 2,
+                plane: plane_of(&ring, &self.points),
+            });
             for t in tris {
                 new_triangles.push(Triangle {
                     corners: t.map(|v| at[&v]),
@@ -1002,9 +1017,135 @@ impl<'a> Work<'a> {
             fill.holes += 1;
             fill.faces += ring.len() - 2;
         }
+        let flat = self.flat_closures(table, &border, &filled, &new_triangles);
+        if !flat.is_empty() {
+            let mut keep = vec![true; new_triangles.len()];
+            for &k in &flat {
+                let f = &filled[k];
+                keep[f.triangles.clone()].fill(false);
+                fill.holes -= 1;
+                fill.faces -= f.faces;
+                fill.flat += 1;
+            }
+            let mut i = 0;
+            new_triangles.retain(|_| {
+                i += 1;
+                keep[i - 1]
+            });
+        }
         drop(shared);
         self.add_triangles(new_triangles);
         fill
+    }
+
+    /// Whether every vertex of the faces reachable from the hole's border face through manifold
+    /// edges lies on the hole's plane (to 1e-9 of its distance or the hole's size): false as soon
+    /// as one does not, which on a curved surface is within a few faces.
+    fn patch_in_plane(&self, table: &CornerTable, filled: &Filled) -> bool {
+        let Some((normal, centre, size)) = filled.plane else {
+            return false;
+        };
+        let off = |v: u32| {
+            let p = self.points[v as usize];
+            let d = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+            let height = normal[0] * d[0] + normal[1] * d[1] + normal[2] * d[2];
+            let reach = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(size);
+            // NaN counts as off the plane.
+            height.is_nan() || height.abs() > 1e-9 * reach
+        };
+        let mut seen: rustc_hash::FxHashSet<u32> = Default::default();
+        let mut stack = vec![filled.table_face];
+        seen.insert(filled.table_face);
+        while let Some(t) = stack.pop() {
+            if table.triangles()[t as usize].iter().any(|&v| off(v)) {
+                return false;
+            }
+            for c in 3 * t..3 * t + 3 {
+                if let Some(o) = table.opposite(c) {
+                    if seen.insert(CornerTable::t(o)) {
+                        stack.push(CornerTable::t(o));
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// The fills (indices into `filled`) that would close a component whose closed surface then
+    /// has no volume: an open sheet lying flat (a fin, a flat patch) filled over its own outline
+    /// becomes a two-sided pillow, which is not a repair. Only components whose every border
+    /// edge gets filled are checked.
+    fn flat_closures(
+        &self,
+        table: &CornerTable,
+        border: &[u32],
+        filled: &[Filled],
+        new_triangles: &[Triangle],
+    ) -> Vec<usize> {
+        // Most fills close curved surfaces: a short walk from the hole finds a face off the
+        // hole's plane, and only the rest (flat patches) pay for components and volumes.
+        let candidates: Vec<usize> = (0..filled.len())
+            .filter(|&k| self.patch_in_plane(table, &filled[k]))
+            .collect();
+        if candidates.is_empty() {
+            return Vec::new();
+        }
+        let component = components(table);
+        let count = component.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
+        let mut open_edges = vec![0usize; count];
+        for &c in border {
+            open_edges[component[CornerTable::t(c) as usize] as usize] += 1;
+        }
+        for f in filled {
+            open_edges[component[f.table_face as usize] as usize] -= f.border_edges;
+        }
+        let closes = |f: &Filled| open_edges[component[f.table_face as usize] as usize] == 0;
+        if !filled.iter().any(closes) {
+            return Vec::new();
+        }
+        // Six times the signed volume and the box of each component that the fills close: its
+        // faces, then its fills (about a point of it, so far-away coordinates cancel less).
+        let mut closing = vec![false; count];
+        for f in filled.iter().filter(|f| closes(f)) {
+            closing[component[f.table_face as usize] as usize] = true;
+        }
+        let mut centre: Vec<Option<[f64; 3]>> = vec![None; count];
+        let mut six_volume = vec![0.0f64; count];
+        let mut bbox = vec![[[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]]; count];
+        let mut add = |comp: usize, w: [u32; 3]| {
+            let [a, b, c] = w.map(|v| self.points[v as usize]);
+            let o = *centre[comp].get_or_insert(a);
+            for p in [a, b, c] {
+                for k in 0..3 {
+                    bbox[comp][0][k] = bbox[comp][0][k].min(p[k]);
+                    bbox[comp][1][k] = bbox[comp][1][k].max(p[k]);
+                }
+            }
+            let [a, b, c] = [a, b, c].map(|p| [p[0] - o[0], p[1] - o[1], p[2] - o[2]]);
+            six_volume[comp] += a[0] * (b[1] * c[2] - b[2] * c[1])
+                - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        };
+        for (t, &w) in table.triangles().iter().enumerate() {
+            let comp = component[t] as usize;
+            if closing[comp] {
+                add(comp, w);
+            }
+        }
+        for f in filled.iter().filter(|f| closes(f)) {
+            let comp = component[f.table_face as usize] as usize;
+            for t in &new_triangles[f.triangles.clone()] {
+                add(comp, self.welded_of(t));
+            }
+        }
+        candidates
+            .into_iter()
+            .filter(|&k| closes(&filled[k]))
+            .filter(|&k| {
+                let comp = component[filled[k].table_face as usize] as usize;
+                is_flat(six_volume[comp] / 6.0, &bbox[comp])
+            })
+            .collect()
     }
 
     /// Adds fill triangles, adding them to the current table too where it can take them (no edge
@@ -1097,6 +1238,45 @@ struct Fill {
     blocked: usize,
     /// Loops with no triangulation that is sure not to overlap itself.
     no_triangulation: usize,
+    /// Loops whose fill would close a flat open surface into a shell with no volume.
+    flat: usize,
+}
+
+/// One hole filled: a table face on its border, its border edges, and its fill triangles
+/// (`faces` of them, at `triangles` in the new triangles).
+struct Filled {
+    table_face: u32,
+    border_edges: usize,
+    triangles: std::ops::Range<usize>,
+    faces: usize,
+    /// The hole's plane: unit normal, centre and size (see [`plane_of`]).
+    plane: Option<([f64; 3], [f64; 3], f64)>,
+}
+
+/// The best-fit plane of loop `ring`: its unit Newell normal, the mean of its points and the
+/// diagonal of their box; `None` without a normal (or with a non-finite point).
+fn plane_of(ring: &[u32], points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3], f64)> {
+    let p: Vec<[f64; 3]> = ring.iter().map(|&v| points[v as usize]).collect();
+    let n = p.len();
+    let mut normal = [0.0f64; 3];
+    let mut centre = [0.0f64; 3];
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for k in 0..n {
+        let (a, b) = (p[k], p[(k + 1) % n]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+        for i in 0..3 {
+            centre[i] += a[i] / n as f64;
+            lo[i] = lo[i].min(a[i]);
+            hi[i] = hi[i].max(a[i]);
+        }
+    }
+    let length = (normal[0].powi(2) + normal[1].powi(2) + normal[2].powi(2)).sqrt();
+    let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
+    (length > 0.0 && length.is_finite() && size.is_finite())
+        .then(|| (normal.map(|x| x / length), centre, size))
 }
 
 /// Component of every table triangle, numbered by lowest triangle, linked through edges of any

@@ -250,6 +250,44 @@ fn fills_that_would_overlap_are_refused() {
     );
 }
 
+/// A regular hexagon (circumradius 1) split as a fan around a centre vertex at height `apex`.
+fn hexagon_fan(apex: f64) -> Mesh {
+    let mut positions = vec![[0.0, 0.0, apex]];
+    for k in 0..6 {
+        let a = std::f64::consts::PI / 3.0 * k as f64;
+        positions.push([a.cos(), a.sin(), 0.0]);
+    }
+    let triangles = (0..6u32).map(|k| [0, 1 + k, 1 + (k + 1) % 6]).collect();
+    Mesh::new(positions, triangles)
+}
+
+/// A flat fan's outline shares no edge with a fill of it (the fan's edges all meet the centre),
+/// but filling it would close the sheet into a two-sided pillow of volume 0: left open and said.
+#[test]
+fn a_flat_sheet_is_not_closed_into_a_pillow() {
+    let p = plan(&hexagon_fan(0.0), &Options::default());
+    assert_eq!(
+        p.not_repairable,
+        vec![
+            "1 hole left open: filling would close a flat open surface into a shell with no volume"
+        ]
+    );
+    assert!(!p.changes(), "{:?}", p.done);
+}
+
+/// The same fan with its centre raised is an open hexagonal pyramid: its base is filled (6 - 2 =
+/// 4 faces), giving a closed genus-0 shell (V 7, E 15, F 10) of volume base x height / 3 =
+/// (3 sqrt 3 / 2) x 1 / 3 = sqrt 3 / 2.
+#[test]
+fn an_open_pyramid_gets_its_base() {
+    let (p, _, a) = repaired(&hexagon_fan(1.0));
+    assert_eq!(p.summary(), "fill-holes:1(4 faces)");
+    assert!(p.not_repairable.is_empty(), "{:?}", p.not_repairable);
+    assert_eq!((a.holes(), a.shells.len(), a.genus()), (0, 1, Some(0)));
+    assert_eq!((a.welded_vertices, a.edges, a.faces), (7, 15, 10));
+    assert_close(a.shells[0].volume.unwrap(), 3f64.sqrt() / 2.0);
+}
+
 /// Every repair can be switched off: with all off, the plan is the input.
 #[test]
 fn repairs_switched_off_change_nothing() {
