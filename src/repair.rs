@@ -1001,7 +1001,7 @@ impl<'a> Work<'a> {
                 .unwrap_or(self.triangles[near as usize].near);
             filled.push(Filled {
                 table_face: CornerTable::t(first),
-                border_edges: loop_corners.len(),
+                border: loop_corners.clone(),
                 triangles: new_triangles.len()..new_triangles.len() + tris.len(),
                 faces: ring.len() - 2,
                 plane: plane_of(&ring, &self.points),
@@ -1097,9 +1097,20 @@ impl<'a> Work<'a> {
             open_edges[component[CornerTable::t(c) as usize] as usize] += 1;
         }
         for f in filled {
-            open_edges[component[f.table_face as usize] as usize] -= f.border_edges;
+            for &c in &f.border {
+                let open = &mut open_edges[component[CornerTable::t(c) as usize] as usize];
+                *open = open.saturating_sub(1);
+            }
         }
-        let closes = |f: &Filled| open_edges[component[f.table_face as usize] as usize] == 0;
+        // A loop through a vertex two components share (when splitting is off) spans both: such
+        // fills are kept as they are.
+        let own = |f: &Filled| component[f.table_face as usize];
+        let closes = |f: &Filled| {
+            f.border
+                .iter()
+                .all(|&c| component[CornerTable::t(c) as usize] == own(f))
+                && open_edges[own(f) as usize] == 0
+        };
         if !filled.iter().any(closes) {
             return Vec::new();
         }
@@ -1242,11 +1253,12 @@ struct Fill {
     flat: usize,
 }
 
-/// One hole filled: a table face on its border, its border edges, and its fill triangles
+/// One hole filled: a table face on its border, its border corners, and its fill triangles
 /// (`faces` of them, at `triangles` in the new triangles).
 struct Filled {
     table_face: u32,
-    border_edges: usize,
+    /// The border corners of the hole (one per border edge).
+    border: Vec<u32>,
     triangles: std::ops::Range<usize>,
     faces: usize,
     /// The hole's plane: unit normal, centre and size (see [`plane_of`]).

@@ -275,6 +275,37 @@ fn a_flat_sheet_is_not_closed_into_a_pillow() {
     assert!(!p.changes(), "{:?}", p.done);
 }
 
+/// Two flat fans sharing one rim vertex, with splitting off: their outlines meet at that vertex,
+/// so a border loop may run through both. Nothing panics and neither is closed into a pillow.
+#[test]
+fn flat_fans_sharing_a_vertex_are_not_pillowed_with_splitting_off() {
+    let a = hexagon_fan(0.0);
+    let mut b = hexagon_fan(0.0);
+    for p in &mut b.positions {
+        p[0] += 2.0;
+    }
+    // Its rim vertex at angle 180 degrees, moved by 2, is the first fan's vertex at angle 0
+    // (exactly, so the weld joins them: sin(pi) is not exactly 0).
+    b.positions[4] = a.positions[1];
+    let mesh = shapes::merge(&[a, b]);
+    let before = analyse(&mesh, &Default::default());
+    assert_eq!(before.nonmanifold_vertices, 1, "the fans share one vertex");
+    let options = Options {
+        split_nonmanifold: false,
+        ..Options::default()
+    };
+    let p = plan(&mesh, &options);
+    let out = analyse(&p.apply(&mesh), &Default::default());
+    assert!(
+        out.shells
+            .iter()
+            .all(|s| s.volume.is_some_and(|v| v.abs() > 1e-9)),
+        "a flat pillow was made: {:?} ({:?})",
+        out.shells,
+        p.done
+    );
+}
+
 /// The same fan with its centre raised is an open hexagonal pyramid: its base is filled (6 - 2 =
 /// 4 faces), giving a closed genus-0 shell (V 7, E 15, F 10) of volume base x height / 3 =
 /// (3 sqrt 3 / 2) x 1 / 3 = sqrt 3 / 2.
