@@ -19,7 +19,7 @@ use crate::caught;
 use crate::config::Settings;
 use crate::formats::{self, write, Format, ReadContext, Retained};
 use crate::mesh::Mesh;
-use crate::repair::{self, Options, Plan};
+use crate::repair::{Options, Plan};
 use crate::rules::{self, MeshFacts, Status};
 use crate::scan::Outcome;
 use crate::topology::{analyse, Built};
@@ -49,37 +49,11 @@ pub struct Kept {
     pub retained: Option<Retained>,
 }
 
-/// Repairs the meshes of one file (`outcomes[i]` is the row of `meshes[i]`).
+/// Repairs the meshes of one file (`outcomes[i]` is the row of `meshes[i]`) with `planner`:
+/// `repair::plan_with` in a scan; tests pass planners that panic or return plans a writer cannot
+/// take.
 #[allow(clippy::too_many_arguments)]
 pub fn repair_file(
-    dir: &Path,
-    display: &str,
-    source: &Path,
-    format: Format,
-    context: &ReadContext,
-    meshes: &[Mesh],
-    kept: Kept,
-    outcomes: &mut [Outcome],
-    settings: &Settings,
-) {
-    repair_file_with(
-        dir,
-        display,
-        source,
-        format,
-        context,
-        meshes,
-        kept,
-        outcomes,
-        settings,
-        &repair::plan_with,
-    );
-}
-
-/// [`repair_file`] with the planning step given (`repair::plan_with` in a scan; tests pass
-/// planners that panic or return plans a writer cannot take).
-#[allow(clippy::too_many_arguments)]
-pub fn repair_file_with(
     dir: &Path,
     display: &str,
     source: &Path,

@@ -26,7 +26,7 @@ use robust::orient2d;
 use rustc_hash::FxHashMap;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::formats::polygon::{project, triangulate, Split};
+use crate::formats::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::{find, is_flat, union, vertex_order, Built};
 use crate::topology::nesting::{depths, segments_touch, ShellGeometry};
@@ -824,32 +824,21 @@ impl<'a> Work<'a> {
             return (0, 0);
         }
         let centre = self.points.first().copied().unwrap_or([0.0; 3]);
-        let mut six_volume = vec![0.0f64; count];
-        let mut bbox = vec![[[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]]; count];
+        let mut sums = vec![VolumeSum::default(); count];
         let mut faces: Vec<Vec<u32>> = vec![Vec::new(); count];
-        for (t, w) in table.triangles().iter().enumerate() {
+        for (t, &w) in table.triangles().iter().enumerate() {
             let comp = component[t] as usize;
             if !shell[comp] {
                 continue;
             }
             faces[comp].push(t as u32);
-            let [a, b, c] = w.map(|v| {
-                let p = self.points[v as usize];
-                for k in 0..3 {
-                    bbox[comp][0][k] = bbox[comp][0][k].min(p[k]);
-                    bbox[comp][1][k] = bbox[comp][1][k].max(p[k]);
-                }
-                [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]]
-            });
-            six_volume[comp] += a[0] * (b[1] * c[2] - b[2] * c[1])
-                - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0]);
+            sums[comp].add(w.map(|v| self.points[v as usize]), centre);
         }
         let shells: Vec<usize> = (0..count).filter(|&c| shell[c]).collect();
         let geometry: Vec<ShellGeometry> = shells
             .iter()
             .map(|&c| ShellGeometry {
-                bbox: bbox[c],
+                bbox: sums[c].bbox,
                 faces: &faces[c],
             })
             .collect();
@@ -857,11 +846,12 @@ impl<'a> Work<'a> {
         let mut flipped = (0, 0);
         let mut flip_faces = Vec::new();
         for (&comp, depth) in shells.iter().zip(depth) {
-            if !wound[comp] || is_flat(six_volume[comp] / 6.0, &bbox[comp]) {
+            if !wound[comp] || sums[comp].is_flat() {
                 continue;
             }
+            let six_volume = sums[comp].six_volume;
             let solid = depth % 2 == 0;
-            if (solid && six_volume[comp] < 0.0) || (!solid && six_volume[comp] > 0.0) {
+            if (solid && six_volume < 0.0) || (!solid && six_volume > 0.0) {
                 flipped.0 += 1;
                 flipped.1 += faces[comp].len();
                 flip_faces.extend(faces[comp].iter().map(|&t| index[t as usize]));
@@ -1000,10 +990,8 @@ impl<'a> Work<'a> {
                 .source
                 .unwrap_or(self.triangles[near as usize].near);
             filled.push(Filled {
-                table_face: CornerTable::t(first),
                 border: loop_corners.clone(),
                 triangles: new_triangles.len()..new_triangles.len() + tris.len(),
-                faces: ring.len() - 2,
                 plane: plane_of(&ring, &self.points),
             });
             for t in tris {
@@ -1024,7 +1012,7 @@ impl<'a> Work<'a> {
                 let f = &filled[k];
                 keep[f.triangles.clone()].fill(false);
                 fill.holes -= 1;
-                fill.faces -= f.faces;
+                fill.faces -= f.triangles.len();
                 fill.flat += 1;
             }
             let mut i = 0;
@@ -1054,8 +1042,8 @@ impl<'a> Work<'a> {
             height.is_nan() || height.abs() > 1e-9 * reach
         };
         let mut seen: rustc_hash::FxHashSet<u32> = Default::default();
-        let mut stack = vec![filled.table_face];
-        seen.insert(filled.table_face);
+        let mut stack = vec![filled.face()];
+        seen.insert(filled.face());
         while let Some(t) = stack.pop() {
             if table.triangles()[t as usize].iter().any(|&v| off(v)) {
                 return false;
@@ -1104,7 +1092,7 @@ impl<'a> Work<'a> {
         }
         // A loop through a vertex two components share (when splitting is off) spans both: such
         // fills are kept as they are.
-        let own = |f: &Filled| component[f.table_face as usize];
+        let own = |f: &Filled| component[f.face() as usize];
         let closes = |f: &Filled| {
             f.border
                 .iter()
@@ -1118,24 +1106,14 @@ impl<'a> Work<'a> {
         // faces, then its fills (about a point of it, so far-away coordinates cancel less).
         let mut closing = vec![false; count];
         for f in filled.iter().filter(|f| closes(f)) {
-            closing[component[f.table_face as usize] as usize] = true;
+            closing[component[f.face() as usize] as usize] = true;
         }
         let mut centre: Vec<Option<[f64; 3]>> = vec![None; count];
-        let mut six_volume = vec![0.0f64; count];
-        let mut bbox = vec![[[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]]; count];
+        let mut sums = vec![VolumeSum::default(); count];
         let mut add = |comp: usize, w: [u32; 3]| {
-            let [a, b, c] = w.map(|v| self.points[v as usize]);
-            let o = *centre[comp].get_or_insert(a);
-            for p in [a, b, c] {
-                for k in 0..3 {
-                    bbox[comp][0][k] = bbox[comp][0][k].min(p[k]);
-                    bbox[comp][1][k] = bbox[comp][1][k].max(p[k]);
-                }
-            }
-            let [a, b, c] = [a, b, c].map(|p| [p[0] - o[0], p[1] - o[1], p[2] - o[2]]);
-            six_volume[comp] += a[0] * (b[1] * c[2] - b[2] * c[1])
-                - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0]);
+            let points = w.map(|v| self.points[v as usize]);
+            let origin = *centre[comp].get_or_insert(points[0]);
+            sums[comp].add(points, origin);
         };
         for (t, &w) in table.triangles().iter().enumerate() {
             let comp = component[t] as usize;
@@ -1144,7 +1122,7 @@ impl<'a> Work<'a> {
             }
         }
         for f in filled.iter().filter(|f| closes(f)) {
-            let comp = component[f.table_face as usize] as usize;
+            let comp = component[f.face() as usize] as usize;
             for t in &new_triangles[f.triangles.clone()] {
                 add(comp, self.welded_of(t));
             }
@@ -1153,8 +1131,8 @@ impl<'a> Work<'a> {
             .into_iter()
             .filter(|&k| closes(&filled[k]))
             .filter(|&k| {
-                let comp = component[filled[k].table_face as usize] as usize;
-                is_flat(six_volume[comp] / 6.0, &bbox[comp])
+                let comp = component[filled[k].face() as usize] as usize;
+                sums[comp].is_flat()
             })
             .collect()
     }
@@ -1253,34 +1231,70 @@ struct Fill {
     flat: usize,
 }
 
-/// One hole filled: a table face on its border, its border corners, and its fill triangles
-/// (`faces` of them, at `triangles` in the new triangles).
+/// Six times the signed volume of a set of triangles (about an origin) and their bounding box.
+#[derive(Debug, Clone, Copy)]
+struct VolumeSum {
+    six_volume: f64,
+    bbox: [[f64; 3]; 2],
+}
+
+impl Default for VolumeSum {
+    fn default() -> VolumeSum {
+        VolumeSum {
+            six_volume: 0.0,
+            bbox: [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]],
+        }
+    }
+}
+
+impl VolumeSum {
+    /// Adds triangle `[a, b, c]`, its volume taken about `origin` (a point near the triangles, so
+    /// far-away coordinates cancel less).
+    fn add(&mut self, [a, b, c]: [[f64; 3]; 3], origin: [f64; 3]) {
+        for p in [a, b, c] {
+            for (k, x) in p.into_iter().enumerate() {
+                self.bbox[0][k] = self.bbox[0][k].min(x);
+                self.bbox[1][k] = self.bbox[1][k].max(x);
+            }
+        }
+        let [a, b, c] = [a, b, c].map(|p| [0, 1, 2].map(|k| p[k] - origin[k]));
+        self.six_volume += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]);
+    }
+
+    /// Whether the volume is zero for the box's size ([`is_flat`]).
+    fn is_flat(&self) -> bool {
+        is_flat(self.six_volume / 6.0, &self.bbox)
+    }
+}
+
+/// One hole filled: its border corners (one per border edge, in loop order) and where its fill
+/// triangles are in the new triangles.
 struct Filled {
-    table_face: u32,
-    /// The border corners of the hole (one per border edge).
     border: Vec<u32>,
     triangles: std::ops::Range<usize>,
-    faces: usize,
     /// The hole's plane: unit normal, centre and size (see [`plane_of`]).
     plane: Option<([f64; 3], [f64; 3], f64)>,
+}
+
+impl Filled {
+    /// A table face on the hole's border.
+    fn face(&self) -> u32 {
+        CornerTable::t(self.border[0])
+    }
 }
 
 /// The best-fit plane of loop `ring`: its unit Newell normal, the mean of its points and the
 /// diagonal of their box; `None` without a normal (or with a non-finite point).
 fn plane_of(ring: &[u32], points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3], f64)> {
     let p: Vec<[f64; 3]> = ring.iter().map(|&v| points[v as usize]).collect();
-    let n = p.len();
-    let mut normal = [0.0f64; 3];
+    let normal = newell(&p);
     let mut centre = [0.0f64; 3];
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for k in 0..n {
-        let (a, b) = (p[k], p[(k + 1) % n]);
-        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    for a in &p {
         for i in 0..3 {
-            centre[i] += a[i] / n as f64;
+            centre[i] += a[i] / p.len() as f64;
             lo[i] = lo[i].min(a[i]);
             hi[i] = hi[i].max(a[i]);
         }

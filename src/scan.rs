@@ -272,6 +272,7 @@ fn judge(
             crate::copies::Kept { built, retained },
             &mut outcomes,
             settings,
+            &crate::repair::plan_with,
         );
     }
     Ok(outcomes)

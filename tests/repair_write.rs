@@ -1431,7 +1431,7 @@ fn files_under(dir: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
-/// Runs `copies::repair_file_with` on the damaged crate with `planner` and returns the rows
+/// Runs `copies::repair_file` on the damaged crate with `planner` and returns the rows
 /// before and after.
 fn repair_crate_with(
     settings: &meshvet::config::Settings,
@@ -1449,7 +1449,7 @@ fn repair_crate_with(
         root: src.clone(),
         limits: settings.limits.clone(),
     };
-    meshvet::copies::repair_file_with(
+    meshvet::copies::repair_file(
         &out,
         &source.display,
         &source.path,
@@ -1572,6 +1572,7 @@ fn the_real_planner_puts_the_copy_and_its_side_files_in_place() {
         Default::default(),
         &mut outcomes,
         &settings,
+        &meshvet::repair::plan_with,
     );
     let row = &outcomes[0].row;
     assert_eq!(row.repairs, "orient-faces:2", "{row:?}");

@@ -83,14 +83,7 @@ pub(crate) fn project(poly: &[u32], positions: &[[f64; 3]]) -> Option<Vec<Coord<
         }
         pts.push(p);
     }
-    // Newell normal: twice the vector area of the polygon.
-    let mut normal = [0.0f64; 3];
-    for (k, a) in pts.iter().enumerate() {
-        let b = pts[(k + 1) % pts.len()];
-        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
+    let normal = newell(&pts);
     let abs = normal.map(f64::abs);
     if !abs.iter().all(|c| c.is_finite()) || abs.iter().all(|&c| c == 0.0) {
         return None;
@@ -120,6 +113,19 @@ pub(crate) fn project(poly: &[u32], positions: &[[f64; 3]]) -> Option<Vec<Coord<
             })
             .collect(),
     )
+}
+
+/// The Newell normal of a closed polygon: twice its vector area, so also a best-fit plane normal
+/// for a polygon that is not planar.
+pub(crate) fn newell(points: &[[f64; 3]]) -> [f64; 3] {
+    let mut normal = [0.0f64; 3];
+    for (k, a) in points.iter().enumerate() {
+        let b = points[(k + 1) % points.len()];
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    normal
 }
 
 /// True for a convex, counter-clockwise, simple polygon with no collinear corner: every turn is
