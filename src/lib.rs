@@ -9,6 +9,7 @@ pub mod config;
 pub mod copies;
 pub mod corner_table;
 pub mod formats;
+pub mod geometry;
 pub mod html;
 pub mod json;
 pub mod junit;

@@ -26,10 +26,11 @@ use robust::orient2d;
 use rustc_hash::FxHashMap;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::formats::polygon::{newell, project, triangulate, Split};
+use crate::geometry::exact::segments_touch;
+use crate::geometry::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::{find, is_flat, union, vertex_order, Built};
-use crate::topology::nesting::{depths, segments_touch, ShellGeometry};
+use crate::topology::nesting::{depths, ShellGeometry};
 use crate::weld::{weld, INVALID};
 
 /// Which repairs run.

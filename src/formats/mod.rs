@@ -13,7 +13,6 @@ mod gltf;
 pub(crate) mod obj;
 pub(crate) mod off;
 pub(crate) mod ply;
-pub(crate) mod polygon;
 mod stl;
 pub mod write;
 

@@ -16,8 +16,8 @@ use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use super::contain::{self, Location, Unresolved};
-use super::polygon::{self, SplitTally};
 use super::{Limits, ReadContext, ReadError};
+use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {

@@ -9,8 +9,8 @@
 
 use std::path::Path;
 
-use super::polygon::{self, SplitTally};
 use super::{ReadContext, ReadError};
+use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {

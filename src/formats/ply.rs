@@ -16,8 +16,8 @@ use ply_rs_bw::ply::{
     ScalarType,
 };
 
-use super::polygon::{self, SplitTally};
 use super::{ReadContext, ReadError};
+use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {

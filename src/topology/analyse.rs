@@ -16,6 +16,7 @@
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
+use crate::geometry::{bounding_box, by_position, cross, dist2, dot, norm2, normal, sub};
 use crate::mesh::Mesh;
 use crate::weld::{weld, Welded, INVALID};
 
@@ -51,12 +52,12 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         welded_vertices: points.len(),
         faces: mesh.triangles.len(),
         invalid_vertices: welded.invalid,
-        bbox: bounding_box(points.iter()),
+        bbox: bounding_box(points),
         ..Analysis::default()
     };
 
     // 1. Faces: leave out invalid and degenerate ones, count zero-area ones, build the table.
-    let diagonal2 = a.bbox.map_or(0.0, |[lo, hi]| dist2(&lo, &hi));
+    let diagonal2 = a.bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
     // area <= 1e-12 d^2  <=>  |cross|^2 <= (2e-12 d^2)^2
     let zero_cross2 = (2e-12 * diagonal2).powi(2);
     let mut referenced = vec![false; points.len()];
@@ -87,8 +88,8 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly in
     // cache (in input order a shuffled mesh misses it for nearly every corner).
     for t in &triangles {
-        let [p, q, r] = t.map(|i| &points[i as usize]);
-        let cross2 = norm2(&normal(p, q, r));
+        let [p, q, r] = t.map(|i| points[i as usize]);
+        let cross2 = norm2(normal(p, q, r));
         if cross2 <= zero_cross2 {
             a.zero_area_faces += 1;
         }
@@ -565,8 +566,8 @@ fn shells(
         let s = shell_of[component_of(t)];
         if s != UNSET {
             let s = s as usize;
-            let [a, b, c] = triangles[t as usize].map(|i| sub(&faces.points[i as usize], &mean[s]));
-            let term = dot(&a, &cross(&b, &c));
+            let [a, b, c] = triangles[t as usize].map(|i| sub(faces.points[i as usize], mean[s]));
+            let term = dot(a, cross(b, c));
             flipped[s] += usize::from(flip[t as usize]);
             six_volume[s] += if flip[t as usize] { -term } else { term };
         }
@@ -685,59 +686,11 @@ fn first_faces_flip(
         .collect()
 }
 
-/// Orders points by x, then y, then z.
-pub(super) fn by_position(p: &[f64; 3], q: &[f64; 3]) -> std::cmp::Ordering {
-    p[0].total_cmp(&q[0])
-        .then(p[1].total_cmp(&q[1]))
-        .then(p[2].total_cmp(&q[2]))
-}
-
 /// Whether a shell's volume is too small for its sign to mean anything: at most 1e-12 of its
 /// bounding box's diagonal cubed (the zero-area test's threshold, one dimension up).
 pub(crate) fn is_flat(volume: f64, bbox: &[[f64; 3]; 2]) -> bool {
-    let diagonal = dist2(&bbox[0], &bbox[1]).sqrt();
+    let diagonal = dist2(bbox[0], bbox[1]).sqrt();
     volume.abs() <= 1e-12 * diagonal.powi(3)
-}
-
-fn bounding_box<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> Option<[[f64; 3]; 2]> {
-    let mut bbox: Option<[[f64; 3]; 2]> = None;
-    for p in points {
-        let b = bbox.get_or_insert([*p, *p]);
-        for k in 0..3 {
-            b[0][k] = b[0][k].min(p[k]);
-            b[1][k] = b[1][k].max(p[k]);
-        }
-    }
-    bbox
-}
-
-/// A (not normalised) normal of triangle `a b c`.
-pub(super) fn normal(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> [f64; 3] {
-    cross(&sub(b, a), &sub(c, a))
-}
-
-fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm2(a: &[f64; 3]) -> f64 {
-    dot(a, a)
-}
-
-fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    norm2(&sub(a, b))
 }
 
 #[cfg(test)]

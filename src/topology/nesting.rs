@@ -9,7 +9,12 @@
 //! grazes an edge, a vertex or lies in a face's plane across the face is never guessed at: another
 //! direction is tried, and a point lying on B's surface is replaced by another vertex of A.
 
-use robust::{orient2d, orient3d, Coord, Coord3D};
+use robust::{orient3d, Coord};
+
+use crate::geometry::by_position;
+use crate::geometry::exact::{
+    dominant_axes, in_triangle_2d, in_triangle_coplanar, p3, segments_touch,
+};
 
 use crate::corner_table::CornerTable;
 
@@ -121,8 +126,7 @@ fn contains(
             .iter()
             .flat_map(|&t| table.triangles()[t as usize])
     };
-    let lowest = vertices()
-        .min_by(|&a, &b| super::analyse::by_position(&points[a as usize], &points[b as usize]));
+    let lowest = vertices().min_by(|&a, &b| by_position(&points[a as usize], &points[b as usize]));
     let Some(lowest) = lowest else { return false };
     let mut tried: Vec<u32> = Vec::with_capacity(ATTEMPTS + 1);
     tried.push(lowest);
@@ -253,7 +257,7 @@ fn coplanar_segment_meets_triangle(
     b: [f64; 3],
     c: [f64; 3],
 ) -> bool {
-    let (i, j) = projection(&a, &b, &c);
+    let (i, j) = dominant_axes(a, b, c);
     let p2 = |p: [f64; 3]| Coord { x: p[i], y: p[j] };
     let (q2, f2) = (p2(q), p2(far));
     let corners = [p2(a), p2(b), p2(c)];
@@ -261,64 +265,6 @@ fn coplanar_segment_meets_triangle(
         return true;
     }
     (0..3).any(|k| segments_touch(q2, f2, corners[k], corners[(k + 1) % 3]))
-}
-
-/// Whether closed segments `p1 p2` and `p3 p4` share a point (exact).
-pub(crate) fn segments_touch(
-    p1: Coord<f64>,
-    p2: Coord<f64>,
-    p3: Coord<f64>,
-    p4: Coord<f64>,
-) -> bool {
-    let d1 = orient2d(p1, p2, p3);
-    let d2 = orient2d(p1, p2, p4);
-    let d3 = orient2d(p3, p4, p1);
-    let d4 = orient2d(p3, p4, p2);
-    if d1 == 0.0 && d2 == 0.0 {
-        // Collinear: do their extents overlap?
-        let overlap = |f: fn(&Coord<f64>) -> f64| {
-            f(&p1).min(f(&p2)) <= f(&p3).max(f(&p4)) && f(&p3).min(f(&p4)) <= f(&p1).max(f(&p2))
-        };
-        return overlap(|p| p.x) && overlap(|p| p.y);
-    }
-    let apart = |x: f64, y: f64| (x > 0.0 && y > 0.0) || (x < 0.0 && y < 0.0);
-    !apart(d1, d2) && !apart(d3, d4)
-}
-
-/// The two coordinates kept when projecting along the dominant axis of the normal of `a b c`.
-fn projection(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> (usize, usize) {
-    let n = super::analyse::normal(a, b, c);
-    let drop = (0..3)
-        .max_by(|&i, &j| n[i].abs().total_cmp(&n[j].abs()))
-        .unwrap_or(2);
-    match drop {
-        0 => (1, 2),
-        1 => (2, 0),
-        _ => (0, 1),
-    }
-}
-
-fn in_triangle_2d(q: Coord<f64>, [a, b, c]: [Coord<f64>; 3]) -> bool {
-    let d = [orient2d(a, b, q), orient2d(b, c, q), orient2d(c, a, q)];
-    let has_neg = d.iter().any(|&x| x < 0.0);
-    let has_pos = d.iter().any(|&x| x > 0.0);
-    !(has_neg && has_pos)
-}
-
-/// Whether `q`, in the plane of `a b c`, lies in the closed triangle (exact, projected on the plane's
-/// dominant axis).
-fn in_triangle_coplanar(q: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> bool {
-    let (i, j) = projection(&a, &b, &c);
-    let p2 = |p: [f64; 3]| Coord { x: p[i], y: p[j] };
-    in_triangle_2d(p2(q), [p2(a), p2(b), p2(c)])
-}
-
-fn p3(p: [f64; 3]) -> Coord3D<f64> {
-    Coord3D {
-        x: p[0],
-        y: p[1],
-        z: p[2],
-    }
 }
 
 #[cfg(test)]

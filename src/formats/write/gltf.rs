@@ -608,7 +608,7 @@ fn rewrite_mesh(
                         continue;
                     };
                     let n = [0, 1, 2].map(|d| decode(ComponentType::F32, &bytes[12 * i + 4 * d..]));
-                    if super::dot(n, *sum) < 0.0 {
+                    if crate::geometry::dot(n, *sum) < 0.0 {
                         negated[i] = true;
                         for d in 0..3 {
                             bytes[12 * i + 4 * d..12 * i + 4 * d + 4]

@@ -20,8 +20,9 @@ use std::path::{Path, PathBuf};
 
 use rustc_hash::FxHashMap;
 
-use super::{polygon, Format, ReadContext, ReadError};
+use super::{Format, ReadContext, ReadError};
 use crate::atomic::AtomicFile;
+use crate::geometry::polygon;
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
@@ -338,23 +339,7 @@ pub(crate) fn polygon_corner(n: usize, k: usize, reversed: bool) -> usize {
 /// The normal (cross product, length twice the area) of a plan triangle at final positions.
 pub(crate) fn triangle_normal(plan: &Plan, mesh: &Mesh, t: &crate::repair::Triangle) -> [f64; 3] {
     let [a, b, c] = t.corners.map(|c| plan.position(mesh, c.vertex));
-    cross(sub(b, a), sub(c, a))
-}
-
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    crate::geometry::normal(a, b, c)
 }
 
 /// Area-weighted normals of the final faces around every vertex a flipped triangle uses, keyed

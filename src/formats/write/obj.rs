@@ -61,7 +61,7 @@ pub fn write(
         let Some(n) = parse3(&detail.normals[vn as usize]) else {
             return vn;
         };
-        if super::dot(n, *sum) >= 0.0 {
+        if crate::geometry::dot(n, *sum) >= 0.0 {
             return vn;
         }
         *negated.entry(vn).or_insert_with(|| {

@@ -51,7 +51,7 @@ pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result
         if let Some(sum) = sums.get(&(v as u32)) {
             let n: Option<Vec<f64>> = words.iter().take(3).map(|w| w.parse().ok()).collect();
             if let Some(n) = n.filter(|n| n.len() == 3) {
-                if super::dot([n[0], n[1], n[2]], *sum) < 0.0 {
+                if crate::geometry::dot([n[0], n[1], n[2]], *sum) < 0.0 {
                     for (w, x) in words.iter_mut().zip(n) {
                         *w = number(-x);
                     }

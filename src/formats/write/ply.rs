@@ -119,7 +119,7 @@ pub fn write(
                     {
                         let at = [a, b, c].map(|s| scalar_at(e, &record, s));
                         let n = at.map(|i| record[i]);
-                        if super::dot(n, *sum) < 0.0 {
+                        if crate::geometry::dot(n, *sum) < 0.0 {
                             for i in at {
                                 record[i] = -record[i];
                             }

@@ -6,8 +6,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::{cross, sub, write_atomic, WriteError};
+use super::{write_atomic, WriteError};
 use crate::formats::{read, Format, ReadContext};
+use crate::geometry::{dot, normal};
 use crate::repair::Plan;
 
 pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
@@ -27,8 +28,8 @@ pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result
             } else {
                 p
             };
-            let n = cross(sub(wide[1], wide[0]), sub(wide[2], wide[0]));
-            let len = super::dot(n, n).sqrt();
+            let n = normal(wide[0], wide[1], wide[2]);
+            let len = dot(n, n).sqrt();
             let n = if len > 0.0 && len.is_finite() {
                 n.map(|x| (x / len) as f32)
             } else {
