@@ -13,9 +13,10 @@ use std::time::{Instant, SystemTime};
 
 use meshvet::config::Settings;
 use meshvet::html::{HtmlReport, Meta};
+use meshvet::report::Outcome;
 use meshvet::report::Row;
 use meshvet::rules::{Finding, Rule, Severity, Status};
-use meshvet::scan::{self, Extras, Outcome};
+use meshvet::scan::{self, Extras};
 use meshvet::walk::{walk, Filter};
 
 const FILES: usize = 10_000;

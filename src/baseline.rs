@@ -14,9 +14,9 @@
 use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
+use crate::report::Outcome;
 use crate::report::{Row, COLUMNS};
 use crate::rules::{Severity, Status};
-use crate::scan::Outcome;
 
 /// One mesh whose result changed since the baseline.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -53,7 +53,7 @@
 //!
 //! **Hit.** The stored outcomes with `millis` replaced by the time the lookup took (hashing and
 //! decoding); every other cell is what a fresh scan writes. Error rows are never stored: a file
-//! that could not be read is read again next time. Outcomes with [`crate::scan::Detail`] (pictures
+//! that could not be read is read again next time. Outcomes with [`crate::report::Detail`] (pictures
 //! for the HTML report) are not cached; callers that need details bypass the cache.
 
 use std::cell::{OnceCell, RefCell};
@@ -69,9 +69,9 @@ use crate::atomic::AtomicFile;
 use crate::config::Settings;
 use crate::formats::contain::Location;
 use crate::formats::Format;
+use crate::report::Outcome;
 use crate::report::{Row, ShellRow};
 use crate::rules::{Finding, Rule, Severity, Status};
-use crate::scan::Outcome;
 use crate::topology::Role;
 use crate::walk::Source;
 

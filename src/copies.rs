@@ -1,16 +1,16 @@
-//! Repaired copies of one scanned file (`scan --repair-dir DIR`, SPEC 10): for each mesh with a
-//! finding, plan the repair; when a plan changes anything, write the file's copy under DIR (the
-//! scanned tree mirrored, the input's format), read the copy back, analyse it, and fill the rows'
-//! `repaired_path`, `repairs`, `status_after` and `findings_after`.
+//! Repaired copies of one scanned file (`scan --repair-dir DIR`), a stage that returns values: for
+//! each mesh the scan found defects in, plan the repair; when a plan changes anything, write the
+//! file's copy under DIR (the scanned tree mirrored, the input's format), read the copy back and
+//! judge it as the scan judges a file ([`crate::judge`]). What it did comes back as one
+//! [`Repaired`] per mesh; the scan puts that in the mesh's report row.
 //!
 //! The copy and the files it needs beside it (an OBJ's `.mtl` and textures, a glTF's buffers and
 //! images) are first written to a private staging folder next to the copy's place, read back and
-//! analysed there, and only then renamed into place. So a copy that cannot be written, read back
-//! or judged leaves nothing behind: no copy, no side files, an empty `repaired_path`, and a
-//! `repair failed: ... - no copy written, the source is untouched` note in the message. A panic in
-//! the planning, the writer or the re-check is caught here and becomes the same note: the scan
-//! rows of the file are kept as they are. A planner that fails on one mesh costs that mesh's
-//! repair only; the file's other meshes are still repaired.
+//! judged there, and only then renamed into place. So a copy that cannot be written, read back
+//! or judged leaves nothing behind: no copy, no side files, and a `repair failed: ... - no copy
+//! written, the source is untouched` note. A panic in the planning, the writer or the re-check is
+//! caught here and becomes the same note. A planner that fails on one mesh costs that mesh's repair
+//! only; the file's other meshes are still repaired.
 
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -18,11 +18,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::caught;
 use crate::config::Settings;
 use crate::formats::{self, write, Format, ReadContext, Retained};
+use crate::judge::{judge, Judged};
 use crate::mesh::Mesh;
 use crate::repair::{Options, Plan};
-use crate::rules::{self, MeshFacts, Status};
-use crate::scan::Outcome;
-use crate::topology::{analyse, Built};
+use crate::rules::{Finding, Status};
+use crate::topology::Built;
+use crate::walk::STAGE_PREFIX;
 
 /// Where the copy of the file reported as `display` goes under `dir`: the report path with
 /// anything that would climb out (`..`, a root) left out.
@@ -36,22 +37,32 @@ pub fn copy_path(dir: &Path, display: &str) -> PathBuf {
     out
 }
 
-/// The prefix of staging folders (`.meshvet-stage-PID-N`), left only by a process that died.
-pub const STAGE_PREFIX: &str = ".meshvet-stage-";
-
-/// What the scan of a file kept for repairing it, so that nothing is built or read twice: each
-/// mesh's weld and Corner Table (`built[i]` for `meshes[i]`; missing ones are built again) and
-/// what the reader kept for the writer (else the writer reads the source again). The default
-/// keeps nothing.
-#[derive(Debug, Default)]
-pub struct Kept {
-    pub built: Vec<Option<Built>>,
-    pub retained: Option<Retained>,
+/// What the repair stage did for one mesh.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Repaired {
+    /// The copy that holds the repaired mesh, when one was written.
+    pub copy: Option<Copy>,
+    /// What the mesh's report row says about its repair, in order (`not repairable: ...`,
+    /// `repair failed: ...`, `copy: ...` for what the copy could not keep).
+    pub notes: Vec<String>,
 }
 
-/// Repairs the meshes of one file (`outcomes[i]` is the row of `meshes[i]`) with `planner`:
-/// `repair::plan_with` in a scan; tests pass planners that panic or return plans a writer cannot
-/// take.
+/// A repaired copy in place, and what judging it again found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Copy {
+    /// The copy's path as the report writes it (`/` separators).
+    pub path: String,
+    /// The plan's summary: `drop-degenerate-faces:2;orient-faces:14;...`.
+    pub repairs: String,
+    pub status: Status,
+    pub findings: Vec<Finding>,
+}
+
+/// Repairs the meshes of one file with `planner` (`repair::plan_with` in a scan; tests pass planners
+/// that panic or return plans a writer cannot take). `judged[i]` is the verdict on `meshes[i]`: a
+/// mesh with findings is repaired, starting from the weld and table its analysis built when they
+/// were kept (taken from it); `retained` is what the scan's read kept for the writer. Returns one
+/// [`Repaired`] per mesh.
 #[allow(clippy::too_many_arguments)]
 pub fn repair_file(
     dir: &Path,
@@ -60,27 +71,27 @@ pub fn repair_file(
     format: Format,
     context: &ReadContext,
     meshes: &[Mesh],
-    kept: Kept,
-    outcomes: &mut [Outcome],
+    judged: &mut [Judged],
+    retained: Option<Retained>,
     settings: &Settings,
     planner: &dyn Fn(&Mesh, &Options, Option<Built>) -> Plan,
-) {
+) -> Vec<Repaired> {
     let options = settings.repair_options();
+    let mut repaired = vec![Repaired::default(); meshes.len()];
     let mut plans: Vec<Option<Plan>> = Vec::with_capacity(meshes.len());
-    let mut built = kept.built.into_iter();
-    for (mesh, outcome) in meshes.iter().zip(outcomes.iter_mut()) {
-        let built = built.next().flatten();
-        if outcome.findings.is_empty() || mesh.triangles.is_empty() {
+    for ((mesh, judged), done) in meshes.iter().zip(judged).zip(repaired.iter_mut()) {
+        if judged.findings.is_empty() || mesh.triangles.is_empty() {
             plans.push(None);
             continue;
         }
+        let built = judged.built.take();
         match caught(|| planner(mesh, &options, built)) {
             Ok(plan) => {
                 if !plan.not_repairable.is_empty() {
-                    note(
-                        outcome,
-                        &format!("not repairable: {}", plan.not_repairable.join(", ")),
-                    );
+                    done.notes.push(format!(
+                        "not repairable: {}",
+                        plan.not_repairable.join(", ")
+                    ));
                 }
                 // Only plans that change something are written; a mesh that needs nothing stays
                 // as it is.
@@ -88,63 +99,61 @@ pub fn repair_file(
             }
             Err(panic) => {
                 // Other meshes of the file may still be repaired in a copy; this one is not.
-                note(
-                    outcome,
-                    &format!(
-                        "repair failed: the repair planner crashed ({panic}) - this mesh is not \
-                         repaired, the source is untouched"
-                    ),
-                );
+                done.notes.push(format!(
+                    "repair failed: the repair planner crashed ({panic}) - this mesh is not \
+                     repaired, the source is untouched"
+                ));
                 plans.push(None);
             }
         }
     }
+    // A mesh without a verdict is left alone.
+    plans.resize_with(meshes.len(), || None);
     if plans.iter().all(Option::is_none) {
-        return;
+        return repaired;
     }
     let out = copy_path(dir, display);
-    let retained = kept.retained;
+    let failed = |repaired: &mut [Repaired], why: &str| {
+        for (plan, done) in plans.iter().zip(repaired.iter_mut()) {
+            if plan.is_some() {
+                done.notes.push(format!("repair failed: {why}{UNTOUCHED}"));
+            }
+        }
+    };
     match caught(|| {
         stage_and_check(
             &out, dir, source, format, context, meshes, retained, &plans, settings,
         )
     }) {
         Ok(Ok(checked)) => {
-            let repaired_path = out.to_string_lossy().replace('\\', "/");
-            for ((plan, outcome), after) in plans.iter().zip(outcomes.iter_mut()).zip(checked.after)
-            {
+            let path = out.to_string_lossy().replace('\\', "/");
+            for ((plan, done), after) in plans.iter().zip(repaired.iter_mut()).zip(checked.after) {
                 let (Some(plan), Some((status, findings))) = (plan, after) else {
                     continue;
                 };
-                outcome.row.repaired_path = repaired_path.clone();
-                outcome.row.repairs = plan.summary();
-                outcome.row.status_after = status.to_string();
-                outcome.row.findings_after = crate::report::findings_cell(&findings);
-                for n in &checked.notes {
-                    note(outcome, &format!("copy: {n}"));
-                }
+                done.copy = Some(Copy {
+                    path: path.clone(),
+                    repairs: plan.summary(),
+                    status,
+                    findings,
+                });
+                done.notes
+                    .extend(checked.notes.iter().map(|n| format!("copy: {n}")));
             }
         }
-        Ok(Err(why)) => failed(outcomes, &plans, &why),
-        Err(panic) => failed(outcomes, &plans, &format!("internal error ({panic})")),
+        Ok(Err(why)) => failed(&mut repaired, &why),
+        Err(panic) => failed(&mut repaired, &format!("internal error ({panic})")),
     }
+    repaired
 }
 
 /// The end of every `repair failed` note.
 const UNTOUCHED: &str = " - no copy written, the source is untouched";
 
-fn failed(outcomes: &mut [Outcome], plans: &[Option<Plan>], why: &str) {
-    for (plan, outcome) in plans.iter().zip(outcomes.iter_mut()) {
-        if plan.is_some() {
-            note(outcome, &format!("repair failed: {why}{UNTOUCHED}"));
-        }
-    }
-}
-
 /// A copy that was written, read back and judged, now in place.
 struct Checked {
     /// Per mesh with a plan: the copy's status and findings.
-    after: Vec<Option<(Status, Vec<rules::Finding>)>>,
+    after: Vec<Option<(Status, Vec<Finding>)>>,
     /// The writer's notes (what the copy could not keep).
     notes: Vec<String>,
 }
@@ -201,20 +210,13 @@ fn stage_and_check(
             return Err(format!("the copy cannot be read: {e}"));
         }
     };
-    let analysis_options = settings.options();
     let after = plans
         .iter()
         .zip(&again)
         .map(|(plan, mesh)| {
             plan.as_ref().map(|_| {
-                let analysis = analyse(mesh, &analysis_options);
-                let findings = rules::check(&analysis, &MeshFacts::of(mesh), &settings.severities);
-                let status = if mesh.triangles.is_empty() {
-                    Status::Empty
-                } else {
-                    Status::of(&findings)
-                };
-                (status, findings)
+                let judged = judge(mesh, settings);
+                (judged.status, judged.findings)
             })
         })
         .collect();
@@ -331,13 +333,6 @@ impl Drop for Stage {
             }
         }
     }
-}
-
-fn note(outcome: &mut Outcome, text: &str) {
-    if !outcome.row.message.is_empty() {
-        outcome.row.message.push_str("; ");
-    }
-    outcome.row.message.push_str(text);
 }
 
 /// Whether two files hold the same bytes (sizes first; a file that cannot be read differs).

@@ -24,9 +24,9 @@ use std::path::Path;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::atomic::AtomicFile;
+use crate::report::Outcome;
 use crate::report::{Row, COLUMNS};
 use crate::rules::{Rule, Severity, Status};
-use crate::scan::Outcome;
 use crate::topology::{Role, Shell};
 
 /// The most bytes of pictures one page carries.
@@ -736,8 +736,8 @@ fn is_json_number(cell: &str) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::report::Detail;
     use crate::rules::Finding;
-    use crate::scan::Detail;
 
     fn outcome(path: &str, status: Status, findings: &[(Rule, Severity, usize)]) -> Outcome {
         Outcome {

@@ -13,9 +13,9 @@ use std::io::{self, Write};
 
 use serde_json::{Map, Number, Value};
 
+use crate::report::Outcome;
 use crate::report::{Output, ShellRow, Target};
 use crate::rules::Finding;
-use crate::scan::Outcome;
 use crate::topology::Role;
 
 /// The CSV columns whose cells are floats.

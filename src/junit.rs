@@ -17,9 +17,9 @@ use std::time::Duration;
 
 use quick_junit::{NonSuccessKind, Report, TestCase, TestCaseStatus, TestSuite};
 
+use crate::report::Outcome;
 use crate::report::{Output, Target};
 use crate::rules::{Severity, Status};
-use crate::scan::Outcome;
 
 /// A JUnit report being gathered; [`JunitReport::finish`] writes it (a file atomically).
 pub struct JunitReport {

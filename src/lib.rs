@@ -12,6 +12,7 @@ pub mod formats;
 pub mod geometry;
 pub mod html;
 pub mod json;
+pub mod judge;
 pub mod junit;
 pub mod mesh;
 pub mod picture;

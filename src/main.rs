@@ -18,8 +18,9 @@ use meshvet::baseline::{self, Baseline};
 use meshvet::cache::Cache;
 use meshvet::config;
 use meshvet::html::{self, HtmlReport};
+use meshvet::report::Outcome;
 use meshvet::rules::{Severity, Status};
-use meshvet::scan::{self, Outcome};
+use meshvet::scan;
 use meshvet::shard;
 use meshvet::walk::{self, Source};
 

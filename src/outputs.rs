@@ -7,9 +7,9 @@ use std::time::Duration;
 
 use meshvet::json::JsonReport;
 use meshvet::junit::JunitReport;
+use meshvet::report::Outcome;
 use meshvet::report::{CsvReport, Target};
 use meshvet::rules::{Severity, Status};
-use meshvet::scan::Outcome;
 
 use crate::cli::{self, Scan};
 

@@ -395,12 +395,12 @@ fn normalized(a: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::topology::{analyse, places, Options};
+    use crate::topology::{analyse_keeping, places, Options};
     use crate::Mesh;
 
     fn picture(mesh: &Mesh) -> Option<String> {
-        let options = Options::default();
-        draw(&places(mesh, &options, &analyse(mesh, &options)))
+        let (analysis, built) = analyse_keeping(mesh, &Options::default());
+        draw(&places(&built, &analysis))
     }
 
     /// A unit cube without its top: two triangles per side, five sides.

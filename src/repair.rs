@@ -29,8 +29,10 @@ use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::geometry::exact::segments_touch;
 use crate::geometry::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
-use crate::topology::analyse::{find, is_flat, union, vertex_order, Built};
+use crate::topology::analyse::{find, is_flat, union};
+use crate::topology::built::{table_of, welded_face, FaceKind};
 use crate::topology::nesting::{depths, ShellGeometry};
+use crate::topology::Built;
 use crate::weld::{weld, INVALID};
 
 /// Which repairs run.
@@ -409,17 +411,7 @@ impl<'a> Work<'a> {
     }
 
     fn welded_of(&self, t: &Triangle) -> [u32; 3] {
-        t.corners.map(|c| {
-            self.welded
-                .get(c.vertex as usize)
-                .copied()
-                .unwrap_or(INVALID)
-        })
-    }
-
-    /// Whether a triangle can be in a Corner Table (three distinct valid welded vertices).
-    fn in_table(w: &[u32; 3]) -> bool {
-        !w.contains(&INVALID) && w[0] != w[1] && w[1] != w[2] && w[0] != w[2]
+        welded_face(&self.welded, &t.corners.map(|c| c.vertex))
     }
 
     /// Drops faces with invalid vertices, degenerate faces and later copies of duplicate faces (as
@@ -428,15 +420,10 @@ impl<'a> Work<'a> {
         let mut counts = [0; 3];
         let welded = &self.welded;
         self.triangles.retain(|t| {
-            let w = t
-                .corners
-                .map(|c| welded.get(c.vertex as usize).copied().unwrap_or(INVALID));
-            let kind = if w.contains(&INVALID) {
-                0
-            } else if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
-                1
-            } else {
-                return true;
+            let kind = match FaceKind::of(&welded_face(welded, &t.corners.map(|c| c.vertex))) {
+                FaceKind::Invalid => 0,
+                FaceKind::Degenerate => 1,
+                FaceKind::Table => return true,
             };
             counts[kind] += usize::from(options.drop_degenerate_faces);
             !options.drop_degenerate_faces
@@ -504,15 +491,12 @@ impl<'a> Work<'a> {
         let mut index = Vec::with_capacity(self.triangles.len());
         for (i, t) in self.triangles.iter().enumerate() {
             let w = self.welded_of(t);
-            if Self::in_table(&w) {
+            if FaceKind::of(&w) == FaceKind::Table {
                 tris.push(w);
                 index.push(i as u32);
             }
         }
-        let order = vertex_order(&tris, self.points.len());
-        let tris = order.iter().map(|&i| tris[i as usize]).collect();
-        let index = order.iter().map(|&i| index[i as usize]).collect();
-        (CornerTable::from_triangles(tris, self.points.len()), index)
+        table_of(tris, index, self.points.len())
     }
 
     /// Splits non-manifold edges and vertices: each non-manifold edge keeps the two faces that
@@ -1147,7 +1131,7 @@ impl<'a> Work<'a> {
         let first = self.triangles.len() as u32;
         let welded: Vec<[u32; 3]> = new.iter().map(|t| self.welded_of(t)).collect();
         self.triangles.extend(new);
-        let appended = welded.iter().all(Self::in_table)
+        let appended = welded.iter().all(|w| FaceKind::of(w) == FaceKind::Table)
             && self.wound
             && self
                 .table

@@ -17,7 +17,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use crate::atomic::AtomicFile;
 use crate::formats::Format;
 use crate::rules::{Finding, Status};
-use crate::topology::{Analysis, Role};
+use crate::topology::{Analysis, Role, Shell};
 
 /// The column names in order (the header the writer emits).
 pub const COLUMNS: [&str; 44] = [
@@ -297,6 +297,29 @@ pub fn findings_cell(findings: &[Finding]) -> String {
         .map(|f| format!("{}:{}", f.rule, f.count))
         .collect::<Vec<_>>()
         .join(";")
+}
+
+/// One mesh as every report sees it: its row, the findings behind it (for the summary, the JSON and
+/// JUnit reports), its shells and what a detailed report shows.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Outcome {
+    pub row: Row,
+    pub findings: Vec<Finding>,
+    /// The mesh's closed shells (for the JSON report and the cache; a few small structs per mesh,
+    /// so always kept). Empty for error and empty rows.
+    pub shells: Vec<ShellRow>,
+    /// What a detailed report shows beyond the row; only when the scan was asked for details and
+    /// the mesh has triangles.
+    pub detail: Option<Box<Detail>>,
+}
+
+/// The per-shell table and the drawing of one mesh, made while it is in memory.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Detail {
+    pub shells: Vec<Shell>,
+    /// An SVG drawing with the problem places marked (see `picture.rs`); `None` when drawing
+    /// failed or there was nothing to draw.
+    pub picture: Option<String>,
 }
 
 /// Where the CSV goes.

@@ -1,4 +1,5 @@
-//! The per-file pipeline, run on many files in parallel: read -> analyse -> rules -> report rows.
+//! The per-file pipeline, run on many files in parallel: read -> judge (analyse, rules) -> repair
+//! (when asked) -> report rows.
 //!
 //! One file is the unit of parallel work. Files go through a rayon pool of `settings.jobs` threads in
 //! chunks, so however large the tree only one chunk's rows are in memory; each chunk's rows are handed
@@ -16,11 +17,14 @@ use rayon::prelude::*;
 
 use crate::caught;
 use crate::config::Settings;
+use crate::copies::{self, Repaired};
 use crate::formats::{self, Format, ReadContext};
+use crate::judge::{judge, Judged};
+use crate::mesh::Mesh;
 use crate::picture;
-use crate::report::{Row, ShellRow};
-use crate::rules::{self, Finding, MeshFacts, Status};
-use crate::topology::{analyse, analyse_keeping, places, Built, Shell};
+use crate::report::{Detail, Outcome, Row, ShellRow};
+use crate::rules::Status;
+use crate::topology::places;
 use crate::walk::Source;
 
 /// Files per chunk for each worker thread. Rows are small, so a chunk costs little memory; a large
@@ -30,33 +34,11 @@ const CHUNK_PER_THREAD: usize = 256;
 /// Prefix of the scan threads' names: a panic hook can recognise panics that will be caught.
 pub const THREAD_NAME: &str = "meshvet-scan";
 
-/// One report row and the findings behind it (for the summary).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Outcome {
-    pub row: Row,
-    pub findings: Vec<Finding>,
-    /// The mesh's closed shells (for the JSON report and the cache; a few small structs per mesh,
-    /// so always kept). Empty for error and empty rows.
-    pub shells: Vec<ShellRow>,
-    /// What a detailed report shows beyond the row; only when [`Extras::details`] asked for it and
-    /// the mesh has triangles.
-    pub detail: Option<Box<Detail>>,
-}
-
 /// What to compute beyond the report rows. The default (nothing) is what a plain scan pays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Extras {
     /// Fill [`Outcome::detail`]: the per-shell table and a picture (for the HTML report).
     pub details: bool,
-}
-
-/// The per-shell table and the drawing of one mesh, made while it is in memory.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Detail {
-    pub shells: Vec<Shell>,
-    /// An SVG drawing with the problem places marked (see `picture.rs`); `None` when drawing
-    /// failed or there was nothing to draw.
-    pub picture: Option<String>,
 }
 
 /// Scans `sources` on a pool of `settings.jobs` threads (0: one per core). `progress` is called from
@@ -149,9 +131,7 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
     let error = |message: &str, start: Instant| {
         vec![Outcome {
             row: Row::error(&source.display, source.format, message, millis(start)),
-            findings: Vec::new(),
-            shells: Vec::new(),
-            detail: None,
+            ..Outcome::default()
         }]
     };
     if let Some(message) = &source.error {
@@ -163,7 +143,7 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
             start,
         );
     };
-    match caught(|| judge(source, format, settings, extras)) {
+    match caught(|| read_and_judge(source, format, settings, extras)) {
         Ok(Ok(mut outcomes)) => {
             outcomes.sort_by(|a, b| a.row.mesh.cmp(&b.row.mesh));
             outcomes
@@ -176,7 +156,9 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
     }
 }
 
-fn judge(
+/// Reads one file and judges its meshes; with a repair folder, repairs them too. Only here are
+/// rows assembled.
+fn read_and_judge(
     source: &Source,
     format: Format,
     settings: &Settings,
@@ -202,80 +184,105 @@ fn judge(
         row.message = "the file holds no meshes".to_owned();
         return Ok(vec![Outcome {
             row,
-            findings: Vec::new(),
-            shells: Vec::new(),
-            detail: None,
+            ..Outcome::default()
         }]);
     }
-    let options = settings.options();
-    // ... and the weld and table of each mesh it will repair, for the repair planner.
-    let mut built: Vec<Option<Built>> = Vec::new();
-    let outcomes = meshes
-        .iter()
-        .map(|mesh| {
-            let start = Instant::now();
-            let (analysis, kept) = if repairing {
-                let (analysis, kept) = analyse_keeping(mesh, &options);
-                (analysis, Some(kept))
-            } else {
-                (analyse(mesh, &options), None)
-            };
-            let (status, findings) = if mesh.triangles.is_empty() {
-                (Status::Empty, Vec::new())
-            } else {
-                let findings = rules::check(&analysis, &MeshFacts::of(mesh), &settings.severities);
-                (Status::of(&findings), findings)
-            };
-            // A mesh without findings is not repaired: its table goes now.
-            built.push(kept.filter(|_| !findings.is_empty()));
-            let mut notes = mesh.notes.clone();
-            if status == Status::Empty {
-                notes.insert(0, "no triangles".to_owned());
-            }
-            let row = Row::analysed(
-                &source.display,
-                mesh.name.as_deref(),
-                format,
-                status,
-                &analysis,
-                &findings,
-                &notes,
-                mesh.mirrored_instances,
-                read_millis + millis(start),
-            );
-            // A drawing that panics costs the picture, never the row.
-            let detail = (extras.details && !mesh.triangles.is_empty()).then(|| {
-                Box::new(Detail {
-                    shells: analysis.shells.clone(),
-                    picture: caught(|| picture::draw(&places(mesh, &options, &analysis)))
-                        .ok()
-                        .flatten(),
-                })
+    let mut judged = Vec::with_capacity(meshes.len());
+    let mut details = Vec::with_capacity(meshes.len());
+    let mut took = Vec::with_capacity(meshes.len());
+    for mesh in &meshes {
+        let start = Instant::now();
+        let mut verdict = judge(mesh, settings);
+        // A drawing that panics costs the picture, never the row.
+        let detail = (extras.details && !mesh.triangles.is_empty()).then(|| {
+            let picture = verdict.built.as_ref().and_then(|built| {
+                caught(|| picture::draw(&places(built, &verdict.analysis)))
+                    .ok()
+                    .flatten()
             });
-            Outcome {
-                row,
-                findings,
-                shells: ShellRow::of(&analysis),
-                detail,
-            }
-        })
-        .collect::<Vec<Outcome>>();
-    let mut outcomes = outcomes;
-    if let Some(dir) = &settings.repair_dir {
-        crate::copies::repair_file(
+            Box::new(Detail {
+                shells: verdict.analysis.shells.clone(),
+                picture,
+            })
+        });
+        // Only a mesh the repair stage will plan keeps its table.
+        if !repairing || verdict.findings.is_empty() {
+            verdict.built = None;
+        }
+        took.push(read_millis + millis(start));
+        judged.push(verdict);
+        details.push(detail);
+    }
+    let repaired = match &settings.repair_dir {
+        Some(dir) => copies::repair_file(
             dir,
             &source.display,
             &source.path,
             format,
             &context,
             &meshes,
-            crate::copies::Kept { built, retained },
-            &mut outcomes,
+            &mut judged,
+            retained,
             settings,
             &crate::repair::plan_with,
-        );
-    }
+        ),
+        None => vec![Repaired::default(); meshes.len()],
+    };
+    let outcomes = meshes
+        .iter()
+        .zip(judged)
+        .zip(details)
+        .zip(repaired)
+        .zip(took)
+        .map(|((((mesh, judged), detail), repaired), millis)| {
+            let mut outcome = outcome(&source.display, format, mesh, judged, &repaired, millis);
+            outcome.detail = detail;
+            outcome
+        })
+        .collect();
     Ok(outcomes)
+}
+
+/// The report of one mesh of the file reported as `display`: what judging it found and, after a
+/// repair, what the repair stage did (`Repaired::default()` when there was none); `millis` is the
+/// time it took.
+pub fn outcome(
+    display: &str,
+    format: Format,
+    mesh: &Mesh,
+    judged: Judged,
+    repaired: &Repaired,
+    millis: f64,
+) -> Outcome {
+    let mut notes = Vec::with_capacity(mesh.notes.len() + repaired.notes.len() + 1);
+    if judged.status == Status::Empty {
+        notes.push("no triangles".to_owned());
+    }
+    notes.extend(mesh.notes.iter().cloned());
+    notes.extend(repaired.notes.iter().cloned());
+    let mut row = Row::analysed(
+        display,
+        mesh.name.as_deref(),
+        format,
+        judged.status,
+        &judged.analysis,
+        &judged.findings,
+        &notes,
+        mesh.mirrored_instances,
+        millis,
+    );
+    if let Some(copy) = &repaired.copy {
+        row.repaired_path = copy.path.clone();
+        row.repairs = copy.repairs.clone();
+        row.status_after = copy.status.to_string();
+        row.findings_after = crate::report::findings_cell(&copy.findings);
+    }
+    Outcome {
+        row,
+        shells: ShellRow::of(&judged.analysis),
+        findings: judged.findings,
+        detail: None,
+    }
 }
 
 /// Milliseconds since `start`, to the microsecond.

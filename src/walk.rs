@@ -19,8 +19,12 @@ use std::sync::Arc;
 
 use globset::{Glob, GlobSet, GlobSetBuilder};
 
-use crate::copies::STAGE_PREFIX;
 use crate::formats::Format;
+
+/// The prefix of the staging folders a repair writes its copies in before they are checked
+/// (`.meshvet-stage-PID-N`, next to the copy's place). Only a killed run leaves one behind; the
+/// walk never descends into one.
+pub const STAGE_PREFIX: &str = ".meshvet-stage-";
 
 /// One file to scan, or one walk error to report.
 #[derive(Debug, Clone, PartialEq)]

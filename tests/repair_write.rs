@@ -1396,7 +1396,7 @@ fn damaged_crate(
 ) -> (
     meshvet::walk::Source,
     Vec<Mesh>,
-    Vec<meshvet::scan::Outcome>,
+    Vec<meshvet::report::Outcome>,
 ) {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets/props");
     let text = std::fs::read_to_string(assets.join("crate.obj")).unwrap();
@@ -1419,6 +1419,17 @@ fn damaged_crate(
     assert_eq!(outcomes.len(), 1);
     assert!(!outcomes[0].findings.is_empty(), "{:?}", outcomes[0].row);
     (source, meshes, outcomes)
+}
+
+/// Every mesh judged as the scan judges it.
+fn judged_meshes(
+    meshes: &[Mesh],
+    settings: &meshvet::config::Settings,
+) -> Vec<meshvet::judge::Judged> {
+    meshes
+        .iter()
+        .map(|m| meshvet::judge::judge(m, settings))
+        .collect()
 }
 
 /// Every file under `dir` (none for a missing folder).
@@ -1449,20 +1460,29 @@ fn repair_crate_with(
         root: src.clone(),
         limits: settings.limits.clone(),
     };
-    meshvet::copies::repair_file(
+    let mut judged = judged_meshes(&meshes, settings);
+    let repaired = meshvet::copies::repair_file(
         &out,
         &source.display,
         &source.path,
         Format::Obj,
         &c,
         &meshes,
-        Default::default(),
-        &mut outcomes,
+        &mut judged,
+        None,
         settings,
         &|m, o, _| planner(m, o),
     );
     assert_eq!(hashes, hash_tree(&src), "the source tree changed");
-    assert_eq!(outcomes.len(), 1);
+    assert_eq!(repaired.len(), 1);
+    outcomes[0] = meshvet::scan::outcome(
+        &source.display,
+        Format::Obj,
+        &meshes[0],
+        judged.remove(0),
+        &repaired[0],
+        0.0,
+    );
     assert_eq!(
         files_under(&out),
         Vec::<PathBuf>::new(),
@@ -1560,21 +1580,30 @@ fn a_copy_that_cannot_be_read_back_is_removed_with_its_side_files() {
 fn the_real_planner_puts_the_copy_and_its_side_files_in_place() {
     let (_dir, src, out) = dirs();
     let settings = meshvet::config::Settings::default();
-    let (source, meshes, mut outcomes) = damaged_crate(&src, &settings);
+    let (source, meshes, _) = damaged_crate(&src, &settings);
     let c = cx(&src);
-    meshvet::copies::repair_file(
+    let mut judged = judged_meshes(&meshes, &settings);
+    let repaired = meshvet::copies::repair_file(
         &out,
         &source.display,
         &source.path,
         Format::Obj,
         &c,
         &meshes,
-        Default::default(),
-        &mut outcomes,
+        &mut judged,
+        None,
         &settings,
         &meshvet::repair::plan_with,
     );
-    let row = &outcomes[0].row;
+    let outcome = meshvet::scan::outcome(
+        &source.display,
+        Format::Obj,
+        &meshes[0],
+        judged.remove(0),
+        &repaired[0],
+        0.0,
+    );
+    let row = &outcome.row;
     assert_eq!(row.repairs, "orient-faces:2", "{row:?}");
     assert_eq!(row.status_after, "pass");
     assert_eq!(

@@ -5,8 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use meshvet::config::{Config, Settings};
+use meshvet::report::Outcome;
 use meshvet::rules::{Rule, Severity, Status};
-use meshvet::scan::{scan_file, Outcome};
+use meshvet::scan::scan_file;
 use meshvet::walk::{walk, Filter};
 
 /// The hand-counted count of each fixture (the derivation is in the fixture's header).

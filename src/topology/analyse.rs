@@ -1,6 +1,7 @@
 //! The one pass from a mesh to its [`Analysis`]:
 //!
-//! 1. weld positions; classify faces (invalid, degenerate, zero-area) and build the Corner Table;
+//! 1. weld positions, leave out invalid and degenerate faces and build the Corner Table
+//!    ([`super::built`]); count zero-area faces;
 //! 2. walk **patches** (faces linked through manifold edges) with an orientation parity per face: a
 //!    conflict makes the patch non-orientable; patches joined at non-manifold edges form the
 //!    **components**;
@@ -13,12 +14,12 @@
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
+use super::built::{build, Built};
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::geometry::{bounding_box, by_position, cross, dist2, dot, norm2, normal, sub};
 use crate::mesh::Mesh;
-use crate::weld::{weld, Welded, INVALID};
 
 const UNSET: u32 = u32::MAX;
 
@@ -27,67 +28,30 @@ pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
     analyse_keeping(mesh, options).0
 }
 
-/// What an analysis builds that a repair of the same mesh builds again: the weld and the Corner
-/// Table. A scan that repairs keeps them ([`analyse_keeping`]) and hands them to
-/// [`crate::repair::plan_with`], which otherwise welds and builds the table itself.
-#[derive(Debug)]
-pub struct Built {
-    /// The weld tolerance these were built with.
-    pub tolerance: f64,
-    pub welded: Welded,
-    /// The table of the faces that can be in one (valid, not degenerate), by lowest vertex.
-    pub table: CornerTable,
-    /// The input face of every table face.
-    pub source: Vec<u32>,
-    /// Whether the table has no non-manifold edge or vertex.
-    pub manifold: bool,
-}
-
 /// [`analyse`], keeping what it built.
 pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
-    let welded = weld(&mesh.positions, options.weld_tolerance);
+    let (built, left) = build(mesh, options);
+    let Built { welded, table, .. } = &built;
     let points = &welded.positions;
     let mut a = Analysis {
         vertices: mesh.positions.len(),
         welded_vertices: points.len(),
         faces: mesh.triangles.len(),
         invalid_vertices: welded.invalid,
+        invalid_faces: left.invalid_faces,
+        degenerate_faces: left.degenerate_faces,
+        unreferenced_vertices: left.unreferenced_vertices,
         bbox: bounding_box(points),
         ..Analysis::default()
     };
 
-    // 1. Faces: leave out invalid and degenerate ones, count zero-area ones, build the table.
+    // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones).
     let diagonal2 = a.bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
     // area <= 1e-12 d^2  <=>  |cross|^2 <= (2e-12 d^2)^2
     let zero_cross2 = (2e-12 * diagonal2).powi(2);
-    let mut referenced = vec![false; points.len()];
-    let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
-    // The input index of every kept face.
-    let mut source: Vec<u32> = Vec::with_capacity(mesh.triangles.len());
-    for (index, t) in mesh.triangles.iter().enumerate() {
-        let w = t.map(|i| welded.map.get(i as usize).copied().unwrap_or(INVALID));
-        for &x in w.iter().filter(|&&x| x != INVALID) {
-            referenced[x as usize] = true;
-        }
-        if w.contains(&INVALID) {
-            a.invalid_faces += 1;
-        } else if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
-            a.degenerate_faces += 1;
-        } else {
-            triangles.push(w);
-            source.push(index as u32);
-        }
-    }
-    a.unreferenced_vertices = referenced.iter().filter(|&&r| !r).count();
-    drop(referenced);
-
-    let order = vertex_order(&triangles, points.len());
-    let triangles: Vec<[u32; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
-    let source: Vec<u32> = order.iter().map(|&i| source[i as usize]).collect();
-    drop(order);
     // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly in
     // cache (in input order a shuffled mesh misses it for nearly every corner).
-    for t in &triangles {
+    for t in table.triangles() {
         let [p, q, r] = t.map(|i| points[i as usize]);
         let cross2 = norm2(normal(p, q, r));
         if cross2 <= zero_cross2 {
@@ -96,15 +60,14 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         a.area += 0.5 * cross2.sqrt();
     }
 
-    let table = CornerTable::from_triangles(triangles, points.len());
     a.edges = table.edge_count();
     a.border_edges = table.border_edge_count();
     a.nonmanifold_edges = table.nonmanifold_edges().len();
-    a.duplicate_faces = count_duplicates(&table);
+    a.duplicate_faces = count_duplicates(table);
 
     // 2. Patches with orientation parity, then components.
-    let patches = walk_patches(&table);
-    let component_of_patch = join_patches(&table, &patches, &source);
+    let patches = walk_patches(table);
+    let component_of_patch = join_patches(table, &patches, &built.source);
     let component_count = component_of_patch
         .iter()
         .map(|&c| c as usize + 1)
@@ -144,7 +107,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     a.inconsistent_edges = inconsistent.iter().sum();
 
     // 3. Fans: non-manifold vertices, vertices per component, holes.
-    let fans = walk_fans(&table, &component_of);
+    let fans = walk_fans(table, &component_of);
     a.nonmanifold_vertices = fans.nonmanifold_vertices;
     let used_vertices = fans.used_vertices;
     for (comp, &n) in fans.vertices_per_component.iter().enumerate() {
@@ -171,20 +134,14 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     a.euler = used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
 
     let faces = Faces {
-        table: &table,
+        table,
         points,
         patches: &patches,
     };
     a.shells = shells(&faces, &component_of, &components, &fans.fans);
     a.components = components;
-    let built = Built {
-        tolerance: options.weld_tolerance,
-        welded,
-        table,
-        source,
-        manifold: a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0,
-    };
-    (a, built)
+    let manifold = a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0;
+    (a, Built { manifold, ..built })
 }
 
 /// Faces linked through manifold edges, each face with a parity: flipping the faces with parity
@@ -277,28 +234,6 @@ fn join_patches(table: &CornerTable, patches: &Patches, source: &[u32]) -> Vec<u
     (0..count as u32)
         .map(|p| number[find(&mut parent, p) as usize])
         .collect()
-}
-
-/// An order of the faces by their lowest vertex (a counting sort). Files usually number vertices in a
-/// spatially coherent order even when their faces are shuffled; walking faces in this order keeps
-/// neighbours close in memory, which made the analysis of a shuffled 1M-face torus several times
-/// faster (the walks are bound by cache misses, not by arithmetic).
-pub(crate) fn vertex_order(triangles: &[[u32; 3]], vertex_count: usize) -> Vec<u32> {
-    let lowest = |t: &[u32; 3]| t[0].min(t[1]).min(t[2]) as usize;
-    let mut start = vec![0u32; vertex_count + 1];
-    for t in triangles {
-        start[lowest(t) + 1] += 1;
-    }
-    for i in 0..vertex_count {
-        start[i + 1] += start[i];
-    }
-    let mut order = vec![0u32; triangles.len()];
-    for (i, t) in triangles.iter().enumerate() {
-        let slot = &mut start[lowest(t)];
-        order[*slot as usize] = i as u32;
-        *slot += 1;
-    }
-    order
 }
 
 /// Union-find over `u32` ids (path halving): the root of `x`'s set.

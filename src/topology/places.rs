@@ -1,9 +1,10 @@
 //! Where a mesh's problems are, as geometry a picture can mark: border edges, non-manifold edges and
 //! vertices, and the faces of inside-out shells, over the welded vertices.
 //!
-//! [`analyse`](super::analyse) only counts; this pass rebuilds the same Corner Table (same welding,
-//! same faces left out) and names the places. It is only run for reports that draw meshes, so plain
-//! scans never pay for it. Its counts equal the analysis's (a test checks every rule fixture):
+//! [`analyse`](super::analyse) only counts; this pass reads the table the analysis built
+//! ([`Built`], kept by scans that draw) and names the places. It is only run for reports that draw
+//! meshes, so plain scans never pay for it. Its counts equal the analysis's (a test checks every
+//! rule fixture):
 //!
 //! - a border edge is an edge with `O[c] == c`; a non-manifold edge one listed by
 //!   [`CornerTable::nonmanifold_edges`];
@@ -14,10 +15,8 @@
 //!   shell is.
 
 use super::analyse::{find, union};
-use super::{Analysis, Options};
+use super::{Analysis, Built};
 use crate::corner_table::CornerTable;
-use crate::mesh::Mesh;
-use crate::weld::{weld, INVALID};
 
 /// The marked places of one mesh. Vertex indices refer to [`Places::points`].
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -36,18 +35,10 @@ pub struct Places {
     pub nonmanifold_vertices: Vec<u32>,
 }
 
-/// Finds the problem places of `mesh`; `analysis` is its [`analyse`](super::analyse) result with the
-/// same `options` (read for the inside-out shells).
-pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
-    let welded = weld(&mesh.positions, options.weld_tolerance);
-    let mut triangles = Vec::with_capacity(mesh.triangles.len());
-    for t in &mesh.triangles {
-        let w = t.map(|i| welded.map.get(i as usize).copied().unwrap_or(INVALID));
-        if !w.contains(&INVALID) && w[0] != w[1] && w[1] != w[2] && w[0] != w[2] {
-            triangles.push(w);
-        }
-    }
-    let table = CornerTable::build(&triangles, welded.positions.len());
+/// Finds the problem places of a mesh from what its analysis built and found (`analysis` is read
+/// for the inside-out shells).
+pub fn places(built: &Built, analysis: &Analysis) -> Places {
+    let table = &built.table;
     let edge = |c: u32| {
         let (a, b) = (table.v(CornerTable::n(c)), table.v(CornerTable::p(c)));
         [a.min(b), a.max(b)]
@@ -92,8 +83,8 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
         .collect();
     nonmanifold_vertices.dedup();
 
-    // Components: faces linked through manifold and non-manifold edges; numbered like the analysis's
-    // (by lowest face: the table keeps the input order of the faces it holds).
+    // Components: faces linked through manifold and non-manifold edges; numbered like the analysis's,
+    // in order of their lowest input face.
     let faces = table.triangle_count();
     let mut component: Vec<u32> = (0..faces as u32).collect();
     for c in 0..corners {
@@ -106,18 +97,21 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
             union(&mut component, CornerTable::t(cs[0]), CornerTable::t(c));
         }
     }
-    // With the lower root kept, a root is its component's lowest face: numbering roots in face order
-    // numbers components by lowest face.
-    let mut number = vec![u32::MAX; faces];
-    let mut next = 0;
+    let mut lowest = vec![u32::MAX; faces];
     for t in 0..faces as u32 {
         let root = find(&mut component, t) as usize;
-        if number[root] == u32::MAX {
-            number[root] = next;
-            next += 1;
-        }
+        lowest[root] = lowest[root].min(built.source[t as usize]);
     }
-    let mut flipped_component = vec![false; next as usize];
+    let mut roots: Vec<u32> = (0..faces as u32)
+        .filter(|&t| component[t as usize] == t)
+        .collect();
+    roots.sort_unstable_by_key(|&r| lowest[r as usize]);
+    let mut number = vec![u32::MAX; faces];
+    for (i, &r) in roots.iter().enumerate() {
+        number[r as usize] = i as u32;
+    }
+    let next = roots.len();
+    let mut flipped_component = vec![false; next];
     for shell in analysis.shells.iter().filter(|s| s.inside_out) {
         if let Some(f) = flipped_component.get_mut(shell.component) {
             *f = true;
@@ -131,7 +125,7 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
         .collect();
 
     Places {
-        points: welded.positions,
+        points: built.welded.positions.clone(),
         triangles: table.triangles().to_vec(),
         inside_out,
         border_edges,
@@ -143,12 +137,12 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::topology::analyse;
+    use crate::mesh::Mesh;
+    use crate::topology::{analyse_keeping, Options};
 
     fn check(mesh: &Mesh) -> Places {
-        let options = Options::default();
-        let a = analyse(mesh, &options);
-        let p = places(mesh, &options, &a);
+        let (a, built) = analyse_keeping(mesh, &Options::default());
+        let p = places(&built, &a);
         assert_eq!(p.border_edges.len(), a.border_edges);
         assert_eq!(p.nonmanifold_edges.len(), a.nonmanifold_edges);
         assert_eq!(p.nonmanifold_vertices.len(), a.nonmanifold_vertices);
