@@ -396,7 +396,7 @@ impl Cache {
         }
         let before = stamps(&source.path, deps, &[]);
         let bytes = std::fs::read(&source.path).ok()?;
-        let dependencies = dependencies(deps.format, &bytes);
+        let dependencies = crate::formats::side_file_names(deps.format, &bytes);
         // Stamps of the dependencies too; the file's own was taken before reading it.
         let stamps = before.and_then(|mut own| {
             own.extend(
@@ -633,86 +633,6 @@ fn settings_hash(settings: &Settings) -> blake3::Hash {
     field(&mut hasher, crate::report::COLUMNS.join(",").as_bytes());
     field(&mut hasher, format!("{relevant:?}").as_bytes());
     hasher.finalize()
-}
-
-/// The relative paths a file's rows depend on, as the file names them (deduplicated, in order).
-fn dependencies(format: Format, bytes: &[u8]) -> Vec<String> {
-    let mut found = match format {
-        Format::Obj => mtllibs(bytes),
-        Format::Gltf | Format::Glb => gltf_uris(bytes),
-        _ => Vec::new(),
-    };
-    let mut seen = std::collections::HashSet::new();
-    found.retain(|d| seen.insert(d.clone()));
-    found
-}
-
-/// The names after `mtllib`: the whole rest of the line and each word of it (the reader accepts a
-/// name with spaces and several names).
-fn mtllibs(bytes: &[u8]) -> Vec<String> {
-    let mut names = Vec::new();
-    let mut take = |line: &[u8]| {
-        let Some(rest) = line.trim_ascii_start().strip_prefix(b"mtllib") else {
-            return;
-        };
-        if !rest.first().is_some_and(u8::is_ascii_whitespace) {
-            return;
-        }
-        let rest = String::from_utf8_lossy(rest);
-        let rest = rest.trim();
-        names.push(rest.to_owned());
-        names.extend(rest.split_ascii_whitespace().map(str::to_owned));
-    };
-    match std::str::from_utf8(bytes) {
-        // The common case: a fast substring search, then only the lines that mention `mtllib`.
-        Ok(text) => {
-            for (at, _) in text.match_indices("mtllib") {
-                let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
-                let end = text[at..].find('\n').map_or(text.len(), |i| at + i);
-                if text[start..at].trim_ascii().is_empty() {
-                    take(&text.as_bytes()[start..end]);
-                }
-            }
-        }
-        Err(_) => bytes.split(|&b| b == b'\n').for_each(take),
-    }
-    names
-}
-
-/// The external `buffers[].uri` and `images[].uri` of a glTF or GLB file (as written: the reader's
-/// rule decodes them), or none when its JSON cannot be found or parsed (the reader will then report
-/// the file).
-fn gltf_uris(bytes: &[u8]) -> Vec<String> {
-    let json = if bytes.starts_with(b"glTF") {
-        // GLB: 12-byte header, then the JSON chunk (length, type, data).
-        let Some(length) = bytes.get(12..16) else {
-            return Vec::new();
-        };
-        let length = u32::from_le_bytes(length.try_into().expect("4 bytes")) as usize;
-        match bytes.get(20..20usize.saturating_add(length)) {
-            Some(json) => json,
-            None => return Vec::new(),
-        }
-    } else {
-        bytes
-    };
-    let Ok(value) = serde_json::from_slice::<serde_json::Value>(json) else {
-        return Vec::new();
-    };
-    let mut uris = Vec::new();
-    for list in ["buffers", "images"] {
-        for item in value[list].as_array().into_iter().flatten() {
-            if let Some(uri) = item["uri"].as_str() {
-                if !uri
-                    .get(..5)
-                    .is_some_and(|s| s.eq_ignore_ascii_case("data:"))
-                {
-                    uris.push(uri.to_owned());
-                }
-            }
-        }
-    }
-    uris
 }
 
 /// A pack open for positioned reads.
@@ -2230,18 +2150,18 @@ mod tests {
     #[test]
     fn dependencies_are_found_in_obj_gltf_and_glb() {
         assert_eq!(
-            dependencies(Format::Obj, b"v 0 0 0\n  mtllib a b.mtl\nmtllibx c\n"),
+            crate::formats::side_file_names(Format::Obj, b"v 0 0 0\n  mtllib a b.mtl\nmtllibx c\n"),
             ["a b.mtl", "a", "b.mtl"]
         );
         let gltf = br#"{"buffers":[{"uri":"../buffers/x%20y.bin"},{"uri":"data:,"}],"images":[{"uri":"t.png"}]}"#;
         assert_eq!(
-            dependencies(Format::Gltf, gltf),
+            crate::formats::side_file_names(Format::Gltf, gltf),
             ["../buffers/x%20y.bin", "t.png"]
         );
         let mut glb = b"glTF\x02\0\0\0\0\0\0\0".to_vec();
         glb.extend_from_slice(&(gltf.len() as u32).to_le_bytes());
         glb.extend_from_slice(b"JSON");
         glb.extend_from_slice(gltf);
-        assert_eq!(dependencies(Format::Glb, &glb).len(), 2);
+        assert_eq!(crate::formats::side_file_names(Format::Glb, &glb).len(), 2);
     }
 }

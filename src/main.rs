@@ -10,7 +10,7 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Instant, SystemTime};
 
-use clap::Parser;
+use clap::{CommandFactory, FromArgMatches};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use cli::{Cli, Command, Format};
@@ -28,7 +28,15 @@ use meshvet::walk::{self, Source};
 const USAGE: u8 = 2;
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // The formats come from the library's registry, so `--help` lists what this build reads.
+    let formats = format!(
+        "Reads {} (any case).",
+        meshvet::formats::Format::extension_list()
+    );
+    let matches = Cli::command()
+        .mut_subcommand("scan", |scan| scan.after_help(formats))
+        .get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     match cli.command {
         Command::Scan(args) => match run_scan(&args) {
             Ok(code) => code,
@@ -307,7 +315,10 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         lines.extend(finding_lines.into_iter().map(|(_, line)| line));
     } else {
         if sources.is_empty() && !args.quiet {
-            eprintln!("meshvet: no mesh files found (.obj .gltf .glb .stl .ply .off)");
+            eprintln!(
+                "meshvet: no mesh files found ({})",
+                meshvet::formats::Format::extension_list()
+            );
         }
         if !args.quiet {
             lines.push(summary.line(started.elapsed().as_secs_f64()));

@@ -139,7 +139,10 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
     }
     let Some(format) = source.format else {
         return error(
-            "not a mesh file: meshvet reads .obj .gltf .glb .stl .ply .off - rename it if it is one",
+            &format!(
+                "not a mesh file: meshvet reads {} - rename it if it is one",
+                Format::extension_list()
+            ),
             start,
         );
     };

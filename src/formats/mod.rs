@@ -16,7 +16,8 @@ pub(crate) mod ply;
 mod stl;
 pub mod write;
 
-/// The file formats meshvet reads.
+/// The file formats meshvet reads. Everything else meshvet knows of a format is its line of
+/// [`FORMATS`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Format {
     Obj,
@@ -27,31 +28,132 @@ pub enum Format {
     Off,
 }
 
+/// One format: how it is named, found, read and written, and which other files its files name.
+pub(crate) struct Entry {
+    pub format: Format,
+    /// The report's `format` column.
+    pub name: &'static str,
+    /// File name extensions, lower case, without the dot (matched in any case).
+    pub extensions: &'static [&'static str],
+    /// Reads every mesh of a file (after [`check_file`]).
+    pub read: Reader,
+    /// A read that also keeps what the writer of a repaired copy needs, where reading the file
+    /// again would cost a second parse; `None`: the writer reads the source itself.
+    pub read_retaining: Option<fn(&Path, &ReadContext) -> Result<(Vec<Mesh>, Retained), ReadError>>,
+    /// Writes a repaired copy ([`write::Job`]).
+    pub write: fn(write::Job<'_>) -> Result<write::Written, write::WriteError>,
+    /// The other files a file of this format names (`None`: it names none).
+    pub side_files: Option<SideFiles>,
+}
+
+type Reader = fn(&Path, &ReadContext) -> Result<Vec<Mesh>, ReadError>;
+
+/// How a format's files name other files: the cache hashes those files too, found by the reader's
+/// own rule so that it never looks anywhere the reader would not.
+pub(crate) struct SideFiles {
+    /// The names a file's bytes hold, as written (the cache dedups them).
+    pub names: fn(&[u8]) -> Vec<String>,
+    /// The real path of a name, if the reader would read it ([`contain`]).
+    pub resolve: fn(&str, &contain::Location) -> Option<PathBuf>,
+}
+
+/// Every format, in [`Format`] order. Adding a format is a variant above, a reader and a writer
+/// module, and one line here.
+pub(crate) const FORMATS: [Entry; 6] = [
+    Entry {
+        format: Format::Obj,
+        name: "obj",
+        extensions: &["obj"],
+        read: obj::read,
+        read_retaining: Some(obj::read_retaining),
+        write: write::obj::write,
+        side_files: Some(obj::SIDE_FILES),
+    },
+    Entry {
+        format: Format::Gltf,
+        name: "gltf",
+        extensions: &["gltf"],
+        read: gltf::read,
+        read_retaining: None,
+        write: write::gltf::write,
+        side_files: Some(gltf::SIDE_FILES),
+    },
+    Entry {
+        format: Format::Glb,
+        name: "glb",
+        extensions: &["glb"],
+        read: gltf::read,
+        read_retaining: None,
+        write: write::gltf::write,
+        side_files: Some(gltf::SIDE_FILES),
+    },
+    Entry {
+        format: Format::Stl,
+        name: "stl",
+        extensions: &["stl"],
+        read: stl::read,
+        read_retaining: None,
+        write: write::stl::write,
+        side_files: None,
+    },
+    Entry {
+        format: Format::Ply,
+        name: "ply",
+        extensions: &["ply"],
+        read: ply::read,
+        read_retaining: None,
+        write: write::ply::write,
+        side_files: None,
+    },
+    Entry {
+        format: Format::Off,
+        name: "off",
+        extensions: &["off"],
+        read: off::read,
+        read_retaining: None,
+        write: write::off::write,
+        side_files: None,
+    },
+];
+
 impl Format {
+    /// Every format, in declaration order.
+    pub const ALL: [Format; FORMATS.len()] = {
+        let mut all = [Format::Obj; FORMATS.len()];
+        let mut i = 0;
+        while i < FORMATS.len() {
+            all[i] = FORMATS[i].format;
+            i += 1;
+        }
+        all
+    };
+
+    pub(crate) fn entry(self) -> &'static Entry {
+        &FORMATS[self as usize]
+    }
+
     /// The format of a path, from its extension (case-insensitive).
     pub fn of_path(path: &Path) -> Option<Format> {
-        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
-        Some(match ext.as_str() {
-            "obj" => Format::Obj,
-            "gltf" => Format::Gltf,
-            "glb" => Format::Glb,
-            "stl" => Format::Stl,
-            "ply" => Format::Ply,
-            "off" => Format::Off,
-            _ => return None,
-        })
+        let ext = path.extension()?.to_str()?;
+        FORMATS
+            .iter()
+            .find(|e| e.extensions.iter().any(|x| x.eq_ignore_ascii_case(ext)))
+            .map(|e| e.format)
     }
 
     /// The lower-case name used in the report's `format` column.
     pub fn name(self) -> &'static str {
-        match self {
-            Format::Obj => "obj",
-            Format::Gltf => "gltf",
-            Format::Glb => "glb",
-            Format::Stl => "stl",
-            Format::Ply => "ply",
-            Format::Off => "off",
-        }
+        self.entry().name
+    }
+
+    /// Every extension meshvet reads, as a user would type them: `.obj .gltf .glb ...`.
+    pub fn extension_list() -> String {
+        let all: Vec<String> = FORMATS
+            .iter()
+            .flat_map(|e| e.extensions)
+            .map(|x| format!(".{x}"))
+            .collect();
+        all.join(" ")
     }
 }
 
@@ -108,23 +210,24 @@ impl From<std::io::Error> for ReadError {
 /// not an error.
 pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
     check_file(path, &cx.limits)?;
-    match format {
-        Format::Obj => obj::read(path, cx),
-        Format::Gltf | Format::Glb => gltf::read(path, cx),
-        Format::Stl => stl::read(path, cx),
-        Format::Ply => ply::read(path, cx),
-        Format::Off => off::read(path, cx),
-    }
+    (format.entry().read)(path, cx)
 }
 
 /// What a reader kept of a file for the writer of its repaired copy, so that the copy is written
-/// without reading and parsing the file a second time ([`read_retaining`]).
+/// without reading and parsing the file a second time ([`read_retaining`]). Each format keeps a
+/// type of its own, which only its writer takes back out ([`Retained::take`]).
 #[derive(Debug)]
-pub struct Retained(RetainedKind);
+pub struct Retained(Box<dyn std::any::Any + Send>);
 
-#[derive(Debug)]
-enum RetainedKind {
-    Obj(Box<obj::Detail>),
+impl Retained {
+    pub(crate) fn new<T: std::any::Any + Send>(kept: T) -> Retained {
+        Retained(Box::new(kept))
+    }
+
+    /// What was kept, when it is a `T`.
+    pub(crate) fn take<T: std::any::Any>(self) -> Option<Box<T>> {
+        self.0.downcast().ok()
+    }
 }
 
 /// [`read`], also keeping what the writer of a repaired copy needs where reading it again would
@@ -136,39 +239,38 @@ pub fn read_retaining(
     format: Format,
     cx: &ReadContext,
 ) -> Result<(Vec<Mesh>, Option<Retained>), ReadError> {
-    match format {
-        Format::Obj => {
+    match format.entry().read_retaining {
+        Some(read_retaining) => {
             check_file(path, &cx.limits)?;
-            let (meshes, detail) = obj::read_retaining(path, cx)?;
-            Ok((meshes, Some(Retained(RetainedKind::Obj(detail)))))
+            let (meshes, kept) = read_retaining(path, cx)?;
+            Ok((meshes, Some(kept)))
         }
-        _ => Ok((read(path, format, cx)?, None)),
+        None => Ok((read(path, format, cx)?, None)),
     }
 }
 
-impl Retained {
-    /// The OBJ detail, when this was kept of an OBJ file.
-    pub(crate) fn obj(self) -> Option<Box<obj::Detail>> {
-        match self.0 {
-            RetainedKind::Obj(detail) => Some(detail),
-        }
-    }
+/// The names of the other files a file of `format` names (an OBJ's `mtllib`s, a glTF's buffer and
+/// image URIs), deduplicated, in order, as written: for the cache, which hashes them.
+pub(crate) fn side_file_names(format: Format, bytes: &[u8]) -> Vec<String> {
+    let Some(side) = &format.entry().side_files else {
+        return Vec::new();
+    };
+    let mut names = (side.names)(bytes);
+    let mut seen = std::collections::HashSet::new();
+    names.retain(|d| seen.insert(d.clone()));
+    names
 }
 
-/// The real path of `name`, a file a model of `format` names (an OBJ `mtllib`, a glTF buffer or
-/// image URI), if the reader's own rule lets it be read ([`contain`]: inside the tree before and
-/// after symbolic links, a regular file); `None` otherwise. Opens nothing. For the cache, which
-/// hashes what the readers read and must never look anywhere else.
+/// The real path of `name`, a file a model of `format` names, if the reader's own rule lets it be
+/// read ([`contain`]: inside the tree before and after symbolic links, a regular file); `None`
+/// otherwise. Opens nothing. For the cache, which hashes what the readers read and must never look
+/// anywhere else.
 pub(crate) fn dependency(
     format: Format,
     name: &str,
     location: &contain::Location,
 ) -> Option<PathBuf> {
-    match format {
-        Format::Obj => obj::library(name, location).ok(),
-        Format::Gltf | Format::Glb => gltf::buffers::resolve(name, location).ok(),
-        Format::Stl | Format::Ply | Format::Off => None,
-    }
+    (format.entry().side_files.as_ref()?.resolve)(name, location)
 }
 
 /// What a path that is not a regular file is (`a FIFO`, `a folder`, ...), or `None` for a regular
@@ -219,4 +321,25 @@ pub(crate) fn check_file(path: &Path, limits: &Limits) -> Result<u64, ReadError>
         )));
     }
     Ok(size)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_registry_is_in_format_order() {
+        for (i, entry) in FORMATS.iter().enumerate() {
+            assert_eq!(entry.format as usize, i, "{}", entry.name);
+            assert_eq!(
+                Format::of_path(Path::new(&format!(
+                    "a.{}",
+                    entry.extensions[0].to_uppercase()
+                ))),
+                Some(entry.format)
+            );
+        }
+        assert_eq!(Format::extension_list(), ".obj .gltf .glb .stl .ply .off");
+        assert_eq!(Format::of_path(Path::new("a.txt")), None);
+    }
 }

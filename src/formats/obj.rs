@@ -16,7 +16,7 @@ use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use super::contain::{self, Location, Unresolved};
-use super::{Limits, ReadContext, ReadError};
+use super::{Limits, ReadContext, ReadError, Retained, SideFiles};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
@@ -29,9 +29,47 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
 pub(crate) fn read_retaining(
     path: &Path,
     cx: &ReadContext,
-) -> Result<(Vec<Mesh>, Box<Detail>), ReadError> {
+) -> Result<(Vec<Mesh>, Retained), ReadError> {
     let (meshes, detail) = read_with(path, cx, Some(Box::default()))?;
-    Ok((meshes, detail.unwrap_or_default()))
+    Ok((meshes, Retained::new(detail.unwrap_or_default())))
+}
+
+/// The material libraries an OBJ file names, found as the reader finds them.
+pub(crate) const SIDE_FILES: SideFiles = SideFiles {
+    names: mtllib_names,
+    resolve: |name, location| library(name, location).ok(),
+};
+
+/// The names after `mtllib`: the whole rest of the line and each word of it (the reader accepts a
+/// name with spaces and several names).
+fn mtllib_names(bytes: &[u8]) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut take = |line: &[u8]| {
+        let Some(rest) = line.trim_ascii_start().strip_prefix(b"mtllib") else {
+            return;
+        };
+        if !rest.first().is_some_and(u8::is_ascii_whitespace) {
+            return;
+        }
+        let rest = String::from_utf8_lossy(rest);
+        let rest = rest.trim();
+        names.push(rest.to_owned());
+        names.extend(rest.split_ascii_whitespace().map(str::to_owned));
+    };
+    match std::str::from_utf8(bytes) {
+        // The common case: a fast substring search, then only the lines that mention `mtllib`.
+        Ok(text) => {
+            for (at, _) in text.match_indices("mtllib") {
+                let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+                let end = text[at..].find('\n').map_or(text.len(), |i| at + i);
+                if text[start..at].trim_ascii().is_empty() {
+                    take(&text.as_bytes()[start..end]);
+                }
+            }
+        }
+        Err(_) => bytes.split(|&b| b == b'\n').for_each(take),
+    }
+    names
 }
 
 fn read_with(

@@ -28,9 +28,51 @@ use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 
-use super::{ReadContext, ReadError};
+use super::{ReadContext, ReadError, SideFiles};
 use crate::mesh::Mesh;
 use accessor::Data;
+
+/// The buffers and images a glTF or GLB file names, found as the reader finds them.
+pub(crate) const SIDE_FILES: SideFiles = SideFiles {
+    names: uris,
+    resolve: |name, location| buffers::resolve(name, location).ok(),
+};
+
+/// The external `buffers[].uri` and `images[].uri` of a glTF or GLB file (as written: the reader's
+/// rule decodes them), or none when its JSON cannot be found or parsed (the reader will then report
+/// the file).
+fn uris(bytes: &[u8]) -> Vec<String> {
+    let json = if bytes.starts_with(b"glTF") {
+        // GLB: 12-byte header, then the JSON chunk (length, type, data).
+        let Some(length) = bytes.get(12..16) else {
+            return Vec::new();
+        };
+        let length = u32::from_le_bytes(length.try_into().expect("4 bytes")) as usize;
+        match bytes.get(20..20usize.saturating_add(length)) {
+            Some(json) => json,
+            None => return Vec::new(),
+        }
+    } else {
+        bytes
+    };
+    let Ok(value) = serde_json::from_slice::<serde_json::Value>(json) else {
+        return Vec::new();
+    };
+    let mut uris = Vec::new();
+    for list in ["buffers", "images"] {
+        for item in value[list].as_array().into_iter().flatten() {
+            if let Some(uri) = item["uri"].as_str() {
+                if !uri
+                    .get(..5)
+                    .is_some_and(|s| s.eq_ignore_ascii_case("data:"))
+                {
+                    uris.push(uri.to_owned());
+                }
+            }
+        }
+    }
+    uris
+}
 
 /// Reads every mesh of a `.gltf` or `.glb` file (either is recognised by its content).
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {

@@ -25,7 +25,7 @@ use gltf::json::Value;
 use rustc_hash::FxHashMap;
 use serde_json::json;
 
-use super::{normal_sums, write_atomic, WriteError};
+use super::{normal_sums, write_atomic, Job, WriteError, Written};
 use crate::formats::gltf::accessor::Data;
 use crate::formats::gltf::buffers::{self, Location};
 use crate::formats::gltf::container;
@@ -33,17 +33,16 @@ use crate::formats::{read, Format, ReadContext};
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
-pub fn write(
-    source: &Path,
-    plans: &[Option<Plan>],
-    out: &Path,
-    cx: &ReadContext,
-) -> Result<Vec<PathBuf>, WriteError> {
-    crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
-        Err(WriteError::new(format!(
-            "the glTF writer crashed on this file ({panic}): please report it"
-        )))
-    })
+/// Writes the copy and, beside it, the buffers and images it names.
+pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
+    let (source, plans, out, cx) = (job.source, job.plans, job.out, job.cx);
+    let side =
+        crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
+            Err(WriteError::new(format!(
+                "the glTF writer crashed on this file ({panic}): please report it"
+            )))
+        })?;
+    Ok(job.written(side, Vec::new()))
 }
 
 fn bad(what: impl Into<String>) -> WriteError {

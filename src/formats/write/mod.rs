@@ -9,11 +9,11 @@
 //! copy, and the source is never opened for writing. Helpers shared by the polygon formats live
 //! here: which source polygons survive whole, vertex renumbering and the normal check.
 
-mod gltf;
-mod obj;
-mod off;
-mod ply;
-mod stl;
+pub(super) mod gltf;
+pub(super) mod obj;
+pub(super) mod off;
+pub(super) mod ply;
+pub(super) mod stl;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -55,6 +55,39 @@ impl From<std::io::Error> for WriteError {
 pub struct Written {
     pub files: Vec<PathBuf>,
     pub notes: Vec<String>,
+}
+
+/// One repaired copy to write: the source file, one plan per mesh its reader returns (`None`: that
+/// mesh is left as it is), where the copy goes, the reader's context, and what the scan's read kept
+/// of the source (then the writer does not read it again).
+pub struct Job<'a> {
+    pub source: &'a Path,
+    pub format: Format,
+    pub plans: &'a [Option<Plan>],
+    pub out: &'a Path,
+    pub cx: &'a ReadContext,
+    pub retained: Option<(&'a Mesh, super::Retained)>,
+}
+
+impl Job<'_> {
+    /// The plan of a one-mesh format's only mesh.
+    pub(crate) fn single(&self) -> Result<&Plan, WriteError> {
+        match self.plans {
+            [Some(plan)] => Ok(plan),
+            _ => Err(WriteError::new(format!(
+                "a {} file is one mesh: expected one plan, got {}",
+                self.format,
+                self.plans.len()
+            ))),
+        }
+    }
+
+    /// What a writer wrote: the copy, the `side` files beside it, and `notes`.
+    pub(crate) fn written(&self, side: Vec<PathBuf>, notes: Vec<String>) -> Written {
+        let mut files = vec![self.out.to_path_buf()];
+        files.extend(side);
+        Written { files, notes }
+    }
 }
 
 /// Writes the repaired copy of `source` to `out`: `plans` has one entry per mesh the reader
@@ -99,32 +132,14 @@ pub fn write_copy(
             cx.limits.max_file_bytes
         )));
     }
-    let single = || -> Result<&Plan, WriteError> {
-        match plans {
-            [Some(plan)] => Ok(plan),
-            _ => Err(WriteError::new(format!(
-                "a {format} file is one mesh: expected one plan, got {}",
-                plans.len()
-            ))),
-        }
-    };
-    let mut written = Written {
-        files: vec![out.to_path_buf()],
-        notes: Vec::new(),
-    };
-    match format {
-        Format::Obj => {
-            let kept = retained.and_then(|(mesh, r)| Some((mesh, r.obj()?)));
-            written
-                .files
-                .extend(obj::write(source, single()?, out, cx, kept)?)
-        }
-        Format::Stl => stl::write(source, single()?, out, cx)?,
-        Format::Ply => written.notes = ply::write(source, single()?, out, cx)?,
-        Format::Off => off::write(source, single()?, out, cx)?,
-        Format::Gltf | Format::Glb => written.files.extend(gltf::write(source, plans, out, cx)?),
-    }
-    Ok(written)
+    (format.entry().write)(Job {
+        source,
+        format,
+        plans,
+        out,
+        cx,
+        retained,
+    })
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, creating

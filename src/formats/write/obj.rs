@@ -10,17 +10,27 @@ use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
 use super::{
-    normal_sums, polygon_corner, push_int, push_number, renumber, write_atomic, Item, Polygons,
-    WriteError,
+    normal_sums, polygon_corner, push_int, push_number, renumber, write_atomic, Item, Job,
+    Polygons, WriteError, Written,
 };
 use crate::formats::obj::{read_full, Detail, State};
 use crate::formats::ReadContext;
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
+/// Writes the copy and, beside it, its material libraries and textures.
+pub fn write(mut job: Job<'_>) -> Result<Written, WriteError> {
+    let kept = match job.retained.take() {
+        Some((mesh, retained)) => retained.take::<Detail>().map(|detail| (mesh, detail)),
+        None => None,
+    };
+    let side = copy(job.source, job.single()?, job.out, job.cx, kept)?;
+    Ok(job.written(side, Vec::new()))
+}
+
 /// `kept`: the mesh and detail the scan's read kept of `source`; without them the source is read
 /// again.
-pub fn write(
+fn copy(
     source: &Path,
     plan: &Plan,
     out: &Path,

@@ -7,13 +7,20 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{
-    normal_sums, number, polygon_corner, renumber, write_atomic, Item, Polygons, WriteError,
+    normal_sums, number, polygon_corner, renumber, write_atomic, Item, Job, Polygons, WriteError,
+    Written,
 };
 use crate::formats::off::read_full;
 use crate::formats::ReadContext;
 use crate::repair::Plan;
 
-pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
+/// Writes the copy.
+pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
+    copy(job.source, job.single()?, job.out, job.cx)?;
+    Ok(job.written(Vec::new(), Vec::new()))
+}
+
+fn copy(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
     let (mesh, detail) = read_full(source, cx)?;
     let polygons = Polygons::new(
         detail.faces.len(),

@@ -19,7 +19,9 @@ use std::path::Path;
 
 use ply_rs_bw::ply::{ElementDef, Encoding, PropertyType, ScalarType};
 
-use super::{normal_sums, polygon_corner, renumber, write_atomic, Item, Polygons, WriteError};
+use super::{
+    normal_sums, polygon_corner, renumber, write_atomic, Item, Job, Polygons, WriteError, Written,
+};
 use crate::formats::{ply::header, read, Format, ReadContext};
 use crate::repair::Plan;
 
@@ -37,8 +39,13 @@ impl Element {
     }
 }
 
-/// Writes the copy; returns notes on what it could not keep (elements left out, records dropped).
-pub fn write(
+/// Writes the copy, with notes on what it could not keep (elements left out, records dropped).
+pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
+    let notes = copy(job.source, job.single()?, job.out, job.cx)?;
+    Ok(job.written(Vec::new(), notes))
+}
+
+fn copy(
     source: &Path,
     plan: &Plan,
     out: &Path,

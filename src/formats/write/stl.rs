@@ -6,12 +6,18 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::{write_atomic, WriteError};
+use super::{write_atomic, Job, WriteError, Written};
 use crate::formats::{read, Format, ReadContext};
 use crate::geometry::{dot, normal};
 use crate::repair::Plan;
 
-pub fn write(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
+/// Writes the copy.
+pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
+    copy(job.source, job.single()?, job.out, job.cx)?;
+    Ok(job.written(Vec::new(), Vec::new()))
+}
+
+fn copy(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
     let bytes = std::fs::read(source)?;
     let mesh = read(source, Format::Stl, cx)?
         .pop()
