@@ -39,7 +39,7 @@ pub(crate) struct Entry {
     pub read: Reader,
     /// A read that also keeps what the writer of a repaired copy needs, where reading the file
     /// again would cost a second parse; `None`: the writer reads the source itself.
-    pub read_retaining: Option<fn(&Path, &ReadContext) -> Result<(Vec<Mesh>, Retained), ReadError>>,
+    pub read_retaining: Option<RetainingReader>,
     /// Writes a repaired copy ([`write::Job`]).
     pub write: fn(write::Job<'_>) -> Result<write::Written, write::WriteError>,
     /// The other files a file of this format names (`None`: it names none).
@@ -47,6 +47,7 @@ pub(crate) struct Entry {
 }
 
 type Reader = fn(&Path, &ReadContext) -> Result<Vec<Mesh>, ReadError>;
+type RetainingReader = fn(&Path, &ReadContext) -> Result<(Vec<Mesh>, Retained), ReadError>;
 
 /// How a format's files name other files: the cache hashes those files too, found by the reader's
 /// own rule so that it never looks anywhere the reader would not.
