@@ -527,60 +527,8 @@ impl HtmlReport {
 
 /// Why a rule matters and how it is repaired, for the detail view.
 pub fn explain(rule: Rule) -> (&'static str, &'static str) {
-    match rule {
-        Rule::InvalidVertex => (
-            "A coordinate that is not a number breaks every renderer, exporter and bounding box that touches it; the faces using the vertex cannot be drawn or measured.",
-            "Repair drops the faces that use such vertices. The intended position is lost, so fix the exporter or the source file.",
-        ),
-        Rule::DegenerateFace => (
-            "A face whose corners collapse onto an edge or a point has no area and no normal; it upsets normal and tangent generation.",
-            "Repair drops degenerate faces; nothing visible changes.",
-        ),
-        Rule::ZeroAreaFace => (
-            "A sliver face has almost no area: its normal is unstable, it shades badly and it trips booleans and slicers.",
-            "Not repaired automatically; collapse the short edge or decimate in a modelling tool.",
-        ),
-        Rule::DuplicateFace => (
-            "The same triangle twice flickers (z-fighting) and makes its edges non-manifold.",
-            "Repair drops the extra copies and keeps the first.",
-        ),
-        Rule::UnreferencedVertex => (
-            "Stray vertices waste memory and inflate vertex counts and bounding boxes.",
-            "Repair drops vertices no face uses.",
-        ),
-        Rule::NonManifoldEdge => (
-            "An edge shared by three or more faces has no clear inside and outside; slicers, booleans, UV unwrapping and light-map bakers fail on it.",
-            "Repair splits the edge so each fan of faces gets its own copy; often the cause is duplicated or interpenetrating geometry an artist should remove.",
-        ),
-        Rule::NonManifoldVertex => (
-            "Fans of faces touching at a single vertex (a bowtie) break smoothing, half-edge tools and UV unwrapping.",
-            "Repair gives each fan its own copy of the vertex.",
-        ),
-        Rule::Hole => (
-            "An open surface has no inside: it cannot be printed, has no volume for physics, and shows gaps from behind.",
-            "Repair fills holes up to the configured size; larger openings need an artist (they may be intended).",
-        ),
-        Rule::InconsistentWinding => (
-            "Neighbouring faces disagree about which side is out, so back-face culling hides some of them and lighting flips.",
-            "Repair re-orients each component consistently, flipping the faces that disagree with the majority.",
-        ),
-        Rule::NonOrientable => (
-            "A one-sided surface (Moebius strip, Klein bottle) can never be wound consistently, so it cannot bound a solid.",
-            "Not repairable automatically: the surface has to be rebuilt.",
-        ),
-        Rule::InsideOutShell => (
-            "A closed shell facing the wrong way renders inside out and has a negative volume, which breaks printing and physics.",
-            "Repair flips every face of the shell.",
-        ),
-        Rule::Cavity => (
-            "A shell inside another encloses a void: right for a hollow print, surprising for a mass estimate or a game asset.",
-            "Not a defect to repair; delete the inner shell if the void is not wanted.",
-        ),
-        Rule::MirroredInstance => (
-            "A node with a mirroring (negative-determinant) transform flips the mesh's winding on screen unless the engine compensates.",
-            "Apply the mirroring to the geometry when exporting, or check that the engine handles negative scale.",
-        ),
-    }
+    let doc = rule.doc();
+    (doc.meaning, doc.repair)
 }
 
 /// A bar chart with one bar per name, split by status; a click filters the table by `kind`

@@ -1,8 +1,10 @@
 //! Judgement after the facts: the rule table that turns an [`Analysis`] (and the few facts a reader
 //! records on a [`Mesh`]) into findings with severities, and the `status` of a report row (SPEC 9).
 //!
-//! A rule is an enum variant; its name, summary and default severity come from one `match` each. The
-//! names are part of the interface (configs and reports use them): never rename one casually.
+//! A rule is an enum variant. Everything said about it (name, summary, why it matters, how it is
+//! repaired, default severity, the finding in words) is its [`Doc`], one `match` arm each; what
+//! it counts is [`Rule::count`]. The names are part of the interface (configs and reports use
+//! them): never rename one casually.
 
 use std::fmt;
 
@@ -80,67 +82,142 @@ impl Rule {
         Rule::MirroredInstance,
     ];
 
+    /// Everything meshvet says about the rule.
+    pub fn doc(self) -> &'static Doc {
+        match self {
+            Rule::InvalidVertex => &Doc {
+                name: "invalid-vertex",
+                summary: "a vertex has a NaN or infinite coordinate; its faces are left out",
+                meaning: "A coordinate that is not a number breaks every renderer, exporter and bounding box that touches it; the faces using the vertex cannot be drawn or measured.",
+                repair: "Repair drops the faces that use such vertices. The intended position is lost, so fix the exporter or the source file.",
+                default: Severity::Error,
+                one: "vertex with a NaN or infinite coordinate",
+                many: "vertices with NaN or infinite coordinates",
+            },
+            Rule::DegenerateFace => &Doc {
+                name: "degenerate-face",
+                summary: "a face has two corners on the same welded vertex",
+                meaning: "A face whose corners collapse onto an edge or a point has no area and no normal; it upsets normal and tangent generation.",
+                repair: "Repair drops degenerate faces; nothing visible changes.",
+                default: Severity::Warning,
+                one: "degenerate face",
+                many: "degenerate faces",
+            },
+            Rule::ZeroAreaFace => &Doc {
+                name: "zero-area-face",
+                summary: "a face has three distinct vertices but (almost) no area",
+                meaning: "A sliver face has almost no area: its normal is unstable, it shades badly and it trips booleans and slicers.",
+                repair: "Not repaired automatically; collapse the short edge or decimate in a modelling tool.",
+                default: Severity::Warning,
+                one: "zero-area face",
+                many: "zero-area faces",
+            },
+            Rule::DuplicateFace => &Doc {
+                name: "duplicate-face",
+                summary: "a face repeats the three vertices of an earlier face",
+                meaning: "The same triangle twice flickers (z-fighting) and makes its edges non-manifold.",
+                repair: "Repair drops the extra copies and keeps the first.",
+                default: Severity::Warning,
+                one: "duplicate face",
+                many: "duplicate faces",
+            },
+            Rule::UnreferencedVertex => &Doc {
+                name: "unreferenced-vertex",
+                summary: "a vertex is used by no face",
+                meaning: "Stray vertices waste memory and inflate vertex counts and bounding boxes.",
+                repair: "Repair drops vertices no face uses.",
+                default: Severity::Warning,
+                one: "unreferenced vertex",
+                many: "unreferenced vertices",
+            },
+            Rule::NonManifoldEdge => &Doc {
+                name: "non-manifold-edge",
+                summary: "an edge is shared by three or more faces",
+                meaning: "An edge shared by three or more faces has no clear inside and outside; slicers, booleans, UV unwrapping and light-map bakers fail on it.",
+                repair: "Repair splits the edge so each fan of faces gets its own copy; often the cause is duplicated or interpenetrating geometry an artist should remove.",
+                default: Severity::Error,
+                one: "non-manifold edge",
+                many: "non-manifold edges",
+            },
+            Rule::NonManifoldVertex => &Doc {
+                name: "non-manifold-vertex",
+                summary: "the faces around a vertex do not form one fan",
+                meaning: "Fans of faces touching at a single vertex (a bowtie) break smoothing, half-edge tools and UV unwrapping.",
+                repair: "Repair gives each fan its own copy of the vertex.",
+                default: Severity::Error,
+                one: "non-manifold vertex",
+                many: "non-manifold vertices",
+            },
+            Rule::Hole => &Doc {
+                name: "hole",
+                summary: "a loop of border edges: the surface is open there",
+                meaning: "An open surface has no inside: it cannot be printed, has no volume for physics, and shows gaps from behind.",
+                repair: "Repair fills holes up to the configured size; larger openings need an artist (they may be intended).",
+                default: Severity::Warning,
+                one: "hole",
+                many: "holes",
+            },
+            Rule::InconsistentWinding => &Doc {
+                name: "inconsistent-winding",
+                summary: "two neighbouring faces wind their shared edge the same way (some faces are flipped)",
+                meaning: "Neighbouring faces disagree about which side is out, so back-face culling hides some of them and lighting flips.",
+                repair: "Repair re-orients each component consistently, flipping the faces that disagree with the majority.",
+                default: Severity::Error,
+                one: "inconsistently wound edge",
+                many: "inconsistently wound edges",
+            },
+            Rule::NonOrientable => &Doc {
+                name: "non-orientable",
+                summary: "a component cannot be wound consistently at all (Moebius strip, Klein bottle)",
+                meaning: "A one-sided surface (Moebius strip, Klein bottle) can never be wound consistently, so it cannot bound a solid.",
+                repair: "Not repairable automatically: the surface has to be rebuilt.",
+                default: Severity::Error,
+                one: "non-orientable component",
+                many: "non-orientable components",
+            },
+            Rule::InsideOutShell => &Doc {
+                name: "inside-out-shell",
+                summary: "a closed shell faces the wrong way: a solid facing in or a cavity facing out",
+                meaning: "A closed shell facing the wrong way renders inside out and has a negative volume, which breaks printing and physics.",
+                repair: "Repair flips every face of the shell.",
+                default: Severity::Error,
+                one: "inside-out shell",
+                many: "inside-out shells",
+            },
+            Rule::Cavity => &Doc {
+                name: "cavity",
+                summary: "a closed shell lies inside another one: a void inside the material",
+                meaning: "A shell inside another encloses a void: right for a hollow print, surprising for a mass estimate or a game asset.",
+                repair: "Not a defect to repair; delete the inner shell if the void is not wanted.",
+                default: Severity::Off,
+                one: "cavity",
+                many: "cavities",
+            },
+            Rule::MirroredInstance => &Doc {
+                name: "mirrored-instance",
+                summary: "a glTF node instances the mesh with a mirroring transform, so its winding flips on screen",
+                meaning: "A node with a mirroring (negative-determinant) transform flips the mesh's winding on screen unless the engine compensates.",
+                repair: "Apply the mirroring to the geometry when exporting, or check that the engine handles negative scale.",
+                default: Severity::Warning,
+                one: "mirrored instance",
+                many: "mirrored instances",
+            },
+        }
+    }
+
     /// The stable kebab-case name used in configs and reports.
     pub fn name(self) -> &'static str {
-        match self {
-            Rule::InvalidVertex => "invalid-vertex",
-            Rule::DegenerateFace => "degenerate-face",
-            Rule::ZeroAreaFace => "zero-area-face",
-            Rule::DuplicateFace => "duplicate-face",
-            Rule::UnreferencedVertex => "unreferenced-vertex",
-            Rule::NonManifoldEdge => "non-manifold-edge",
-            Rule::NonManifoldVertex => "non-manifold-vertex",
-            Rule::Hole => "hole",
-            Rule::InconsistentWinding => "inconsistent-winding",
-            Rule::NonOrientable => "non-orientable",
-            Rule::InsideOutShell => "inside-out-shell",
-            Rule::Cavity => "cavity",
-            Rule::MirroredInstance => "mirrored-instance",
-        }
+        self.doc().name
     }
 
     /// One line saying what the rule finds.
     pub fn summary(self) -> &'static str {
-        match self {
-            Rule::InvalidVertex => "a vertex has a NaN or infinite coordinate; its faces are left out",
-            Rule::DegenerateFace => "a face has two corners on the same welded vertex",
-            Rule::ZeroAreaFace => "a face has three distinct vertices but (almost) no area",
-            Rule::DuplicateFace => "a face repeats the three vertices of an earlier face",
-            Rule::UnreferencedVertex => "a vertex is used by no face",
-            Rule::NonManifoldEdge => "an edge is shared by three or more faces",
-            Rule::NonManifoldVertex => "the faces around a vertex do not form one fan",
-            Rule::Hole => "a loop of border edges: the surface is open there",
-            Rule::InconsistentWinding => {
-                "two neighbouring faces wind their shared edge the same way (some faces are flipped)"
-            }
-            Rule::NonOrientable => {
-                "a component cannot be wound consistently at all (Moebius strip, Klein bottle)"
-            }
-            Rule::InsideOutShell => "a closed shell faces the wrong way: a solid facing in or a cavity facing out",
-            Rule::Cavity => "a closed shell lies inside another one: a void inside the material",
-            Rule::MirroredInstance => {
-                "a glTF node instances the mesh with a mirroring transform, so its winding flips on screen"
-            }
-        }
+        self.doc().summary
     }
 
     /// The severity a rule has when no config says otherwise.
     pub fn default_severity(self) -> Severity {
-        match self {
-            Rule::InvalidVertex => Severity::Error,
-            Rule::DegenerateFace => Severity::Warning,
-            Rule::ZeroAreaFace => Severity::Warning,
-            Rule::DuplicateFace => Severity::Warning,
-            Rule::UnreferencedVertex => Severity::Warning,
-            Rule::NonManifoldEdge => Severity::Error,
-            Rule::NonManifoldVertex => Severity::Error,
-            Rule::Hole => Severity::Warning,
-            Rule::InconsistentWinding => Severity::Error,
-            Rule::NonOrientable => Severity::Error,
-            Rule::InsideOutShell => Severity::Error,
-            Rule::Cavity => Severity::Off,
-            Rule::MirroredInstance => Severity::Warning,
-        }
+        self.doc().default
     }
 
     /// The rule with this name.
@@ -179,27 +256,8 @@ impl Rule {
 
     /// The finding in words, e.g. `3 non-manifold edges`.
     pub fn describe(self, count: usize) -> String {
-        let (one, many) = match self {
-            Rule::InvalidVertex => (
-                "vertex with a NaN or infinite coordinate",
-                "vertices with NaN or infinite coordinates",
-            ),
-            Rule::DegenerateFace => ("degenerate face", "degenerate faces"),
-            Rule::ZeroAreaFace => ("zero-area face", "zero-area faces"),
-            Rule::DuplicateFace => ("duplicate face", "duplicate faces"),
-            Rule::UnreferencedVertex => ("unreferenced vertex", "unreferenced vertices"),
-            Rule::NonManifoldEdge => ("non-manifold edge", "non-manifold edges"),
-            Rule::NonManifoldVertex => ("non-manifold vertex", "non-manifold vertices"),
-            Rule::Hole => ("hole", "holes"),
-            Rule::InconsistentWinding => {
-                ("inconsistently wound edge", "inconsistently wound edges")
-            }
-            Rule::NonOrientable => ("non-orientable component", "non-orientable components"),
-            Rule::InsideOutShell => ("inside-out shell", "inside-out shells"),
-            Rule::Cavity => ("cavity", "cavities"),
-            Rule::MirroredInstance => ("mirrored instance", "mirrored instances"),
-        };
-        format!("{count} {}", if count == 1 { one } else { many })
+        let doc = self.doc();
+        format!("{count} {}", if count == 1 { doc.one } else { doc.many })
     }
 }
 
@@ -207,6 +265,25 @@ impl fmt::Display for Rule {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
+}
+
+/// What meshvet says about one rule, in one place: the config, the reports, the QA page's detail
+/// view and `--format lines` all read it from here, and a test holds the README's rule table to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Doc {
+    /// The stable kebab-case name used in configs and reports.
+    pub name: &'static str,
+    /// One line saying what the rule finds.
+    pub summary: &'static str,
+    /// Why it matters downstream.
+    pub meaning: &'static str,
+    /// What a repaired copy does about it (or why it does nothing).
+    pub repair: &'static str,
+    /// The severity when no config says otherwise.
+    pub default: Severity,
+    /// A finding in words, for one and for several: `non-manifold edge`, `non-manifold edges`.
+    pub one: &'static str,
+    pub many: &'static str,
 }
 
 /// What the rules need to know about a mesh besides its analysis.
@@ -350,6 +427,30 @@ mod tests {
                 "ALL is in declaration order"
             );
         }
+    }
+
+    /// The README's rule table is the rules' docs, row for row, so it cannot drift from them.
+    #[test]
+    fn the_readme_table_is_the_docs() {
+        let readme = include_str!("../README.md");
+        let rows: Vec<&str> = readme
+            .lines()
+            .skip_while(|l| *l != "## Rules")
+            .skip_while(|l| !l.starts_with("| rule |"))
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .collect();
+        let expected: Vec<String> = Rule::ALL
+            .iter()
+            .map(|r| {
+                let d = r.doc();
+                format!(
+                    "| `{}` | {} | {} | {} |",
+                    d.name, d.default, d.summary, d.repair
+                )
+            })
+            .collect();
+        assert_eq!(rows, expected);
     }
 
     #[test]
