@@ -88,7 +88,7 @@ fn run(tree: &Path, settings: &Settings, cache: Option<&Path>) -> (f64, String, 
             millis: None,
             ..outcome.row
         };
-        csv.serialize(row).map_err(std::io::Error::other)
+        csv.write_record(row.cells()).map_err(std::io::Error::other)
     })
     .unwrap();
     let stats = cache.map_or_else(Stats::default, |c| c.finish().unwrap());

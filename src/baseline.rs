@@ -73,7 +73,7 @@ impl Baseline {
             .headers()
             .map_err(|e| format!("cannot read the baseline {name}: {e}"))?
             .clone();
-        if header.iter().ne(COLUMNS) {
+        if header.iter().ne(COLUMNS.iter().copied()) {
             return Err(format!(
                 "the baseline {name} has other columns than this meshvet's CSV (written by \
                  another version, or not a meshvet report): scan again to make a new baseline \
@@ -85,13 +85,16 @@ impl Baseline {
             ));
         }
         let mut before = HashMap::new();
-        for (i, row) in reader.deserialize::<Row>().enumerate() {
-            let row = row.map_err(|e| {
-                format!(
-                    "the baseline {name} is not a meshvet CSV at row {}: {e}",
-                    i + 2
-                )
-            })?;
+        for (i, record) in reader.records().enumerate() {
+            let row = record
+                .map_err(|e| e.to_string())
+                .and_then(|r| Row::from_cells(r.iter()))
+                .map_err(|e| {
+                    format!(
+                        "the baseline {name} is not a meshvet CSV at row {}: {e}",
+                        i + 2
+                    )
+                })?;
             let rules = row
                 .findings
                 .split(';')

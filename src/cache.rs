@@ -1155,24 +1155,15 @@ fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
     let mut out = Vec::with_capacity(1024);
     put_len(&mut out, outcomes.len());
     for o in outcomes {
-        let mut writer = csv::WriterBuilder::new()
-            .has_headers(false)
-            .from_writer(Vec::new());
-        writer.serialize(&o.row).map_err(io::Error::other)?;
-        let line = writer.into_inner().map_err(|e| e.into_error())?;
-        let cells = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(line.as_slice())
-            .records()
-            .next()
-            .ok_or_else(|| io::Error::other("a row wrote no CSV record"))?
-            .map_err(io::Error::other)?;
+        let cells = o.row.cells();
         put_len(&mut out, cells.len());
-        put_len(&mut out, cells.as_byte_record().as_slice().len());
+        put_len(&mut out, cells.iter().map(String::len).sum());
         for cell in &cells {
             put_varint(&mut out, cell.len());
         }
-        out.extend_from_slice(cells.as_byte_record().as_slice());
+        for cell in &cells {
+            out.extend_from_slice(cell.as_bytes());
+        }
         put_len(&mut out, o.findings.len());
         for f in &o.findings {
             put_str(&mut out, f.rule.name());
@@ -1217,7 +1208,10 @@ fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
             left: count,
             start: 0,
         };
-        let row = cells.row()?;
+        let row = Row::from_cells(&mut cells).ok()?;
+        if cells.left != 0 || cells.start != cells.text.len() {
+            return None;
+        }
         let findings = (0..r.len()?)
             .map(|_| {
                 Some(Finding {
@@ -1268,86 +1262,15 @@ struct Cells<'a> {
     start: usize,
 }
 
-impl<'a> Cells<'a> {
+impl<'a> Iterator for Cells<'a> {
+    type Item = &'a str;
+
     fn next(&mut self) -> Option<&'a str> {
         self.left = self.left.checked_sub(1)?;
         let end = self.start.checked_add(self.lens.varint()?)?;
         let cell = self.text.get(self.start..end)?;
         self.start = end;
         Some(cell)
-    }
-
-    fn text(&mut self) -> Option<String> {
-        self.next().map(str::to_owned)
-    }
-
-    /// An empty cell is `None`, like the CSV reader's; the rest parse as the reader parses them
-    /// (a number's text, `true`/`false`).
-    fn value<T: std::str::FromStr>(&mut self) -> Option<Option<T>> {
-        match self.next()? {
-            "" => Some(None),
-            cell => cell.parse().ok().map(Some),
-        }
-    }
-
-    fn status(&mut self) -> Option<Option<Status>> {
-        match self.next()? {
-            "" => Some(None),
-            cell => Status::from_name(cell).map(Some),
-        }
-    }
-
-    /// The row these cells are, as `csv`'s deserializer reads it (a test compares the two), without
-    /// its per-field dispatch: this is most of a hit's decoding. Every field is named, so a
-    /// changed [`Row`] does not compile until this follows; the cells must all be used.
-    fn row(&mut self) -> Option<Row> {
-        let row = Row {
-            path: self.text()?,
-            mesh: self.text()?,
-            format: self.text()?,
-            status: self.status()?,
-            message: self.text()?,
-            vertices: self.value()?,
-            welded_vertices: self.value()?,
-            faces: self.value()?,
-            degenerate_faces: self.value()?,
-            zero_area_faces: self.value()?,
-            duplicate_faces: self.value()?,
-            invalid_vertices: self.value()?,
-            unreferenced_vertices: self.value()?,
-            edges: self.value()?,
-            border_edges: self.value()?,
-            nonmanifold_edges: self.value()?,
-            nonmanifold_vertices: self.value()?,
-            inconsistent_edges: self.value()?,
-            components: self.value()?,
-            shells: self.value()?,
-            holes: self.value()?,
-            orientable: self.value()?,
-            oriented: self.value()?,
-            inside_out_shells: self.value()?,
-            cavities: self.value()?,
-            solids: self.value()?,
-            euler: self.value()?,
-            genus: self.value()?,
-            volume: self.value()?,
-            area: self.value()?,
-            bbox_min_x: self.value()?,
-            bbox_min_y: self.value()?,
-            bbox_min_z: self.value()?,
-            bbox_max_x: self.value()?,
-            bbox_max_y: self.value()?,
-            bbox_max_z: self.value()?,
-            repaired_path: self.text()?,
-            repairs: self.text()?,
-            millis: self.value()?,
-            invalid_faces: self.value()?,
-            mirrored_instances: self.value()?,
-            findings: self.text()?,
-            status_after: self.text()?,
-            findings_after: self.text()?,
-        };
-        (self.left == 0 && self.start == self.text.len()).then_some(row)
     }
 }
 
@@ -1568,7 +1491,7 @@ mod tests {
         assert_eq!(warm, cold);
     }
 
-    /// The cells decode as the CSV reader reads them: every field distinct, so a column read
+    /// The cells decode as they read back from a CSV file: every field distinct, so a column read
     /// into the wrong field shows.
     #[test]
     fn cells_decode_as_the_csv_reader_reads_them() {
@@ -1630,7 +1553,7 @@ mod tests {
             let mut writer = csv::WriterBuilder::new()
                 .has_headers(false)
                 .from_writer(Vec::new());
-            writer.serialize(&row).unwrap();
+            writer.write_record(row.cells()).unwrap();
             let line = writer.into_inner().unwrap();
             let record = csv::ReaderBuilder::new()
                 .has_headers(false)
@@ -1639,7 +1562,7 @@ mod tests {
                 .next()
                 .unwrap()
                 .unwrap();
-            assert_eq!(record.deserialize::<Row>(None).unwrap(), decoded);
+            assert_eq!(Row::from_cells(record.iter()), Ok(decoded));
             // Cut short or too long: not a row.
             assert!(decode(&payload[..payload.len() - 1]).is_none());
             let mut longer = payload.clone();

@@ -433,31 +433,14 @@ impl HtmlReport {
             "],\"picturesLeftOut\":{},\"pictureBudget\":{},\"rows\":[",
             self.pictures_left_out, PICTURE_BUDGET
         );
-        // The cells exactly as the CSV report writes them: every row through the CSV writer, read
-        // back one record at a time.
-        let mut writer = csv::WriterBuilder::new()
-            .has_headers(false)
-            .from_writer(Vec::new());
-        for e in &self.entries {
-            writer
-                .serialize(&e.row)
-                .expect("a row serializes to memory");
-        }
-        let csv = writer.into_inner().expect("writing to memory cannot fail");
-        let mut reader = csv::ReaderBuilder::new()
-            .has_headers(false)
-            .from_reader(&csv[..]);
-        let mut records = reader.records();
+        // The cells exactly as the CSV report writes them.
         let mut picture = 0;
         for (i, e) in self.entries.iter().enumerate() {
             if i > 0 {
                 out.push_str(",\n");
             }
             out.push('[');
-            let record = records
-                .next()
-                .and_then(Result::ok)
-                .expect("a record per row");
+            let record = e.row.cells();
             for cell in record.iter() {
                 if is_json_number(cell) {
                     out.push_str(cell);

@@ -11,25 +11,12 @@
 
 use std::io::{self, Write};
 
-use serde_json::{Map, Number, Value};
+use serde_json::Value;
 
 use crate::report::Outcome;
-use crate::report::{Output, ShellRow, Target};
+use crate::report::{Cell, Output, ShellRow, Target};
 use crate::rules::Finding;
 use crate::topology::Role;
-
-/// The CSV columns whose cells are floats.
-const FLOAT_COLUMNS: [&str; 9] = [
-    "volume",
-    "area",
-    "bbox_min_x",
-    "bbox_min_y",
-    "bbox_min_z",
-    "bbox_max_x",
-    "bbox_max_y",
-    "bbox_max_z",
-    "millis",
-];
 
 /// A JSON Lines report being written; [`JsonReport::finish`] puts a file in place atomically.
 pub struct JsonReport {
@@ -55,21 +42,7 @@ impl JsonReport {
 
 /// The JSON object of one mesh (see the module docs).
 pub fn record(outcome: &Outcome) -> Value {
-    let mut object = match serde_json::to_value(&outcome.row) {
-        Ok(Value::Object(map)) => map,
-        // A Row is a struct of plain fields: it always serializes to an object.
-        _ => Map::new(),
-    };
-    for name in FLOAT_COLUMNS {
-        if let Some(value) = object.get_mut(name) {
-            *value = float(value.as_str().and_then(|cell| cell.parse().ok()));
-        }
-    }
-    if let Some(status) = object.get_mut("status") {
-        if status.as_str() == Some("") {
-            *status = Value::Null;
-        }
-    }
+    let mut object = outcome.row.json();
     object.insert(
         "findings".to_owned(),
         outcome.findings.iter().map(finding).collect(),
@@ -79,12 +52,6 @@ pub fn record(outcome: &Outcome) -> Value {
         outcome.shells.iter().map(shell).collect(),
     );
     Value::Object(object)
-}
-
-fn float(value: Option<f64>) -> Value {
-    value
-        .and_then(Number::from_f64)
-        .map_or(Value::Null, Value::Number)
 }
 
 fn finding(f: &Finding) -> Value {
@@ -101,7 +68,7 @@ fn shell(s: &ShellRow) -> Value {
         "faces": s.faces,
         "holes": s.holes,
         "genus": s.genus,
-        "volume": float(s.volume),
+        "volume": s.volume.json(),
         "depth": s.depth,
         "role": role_name(s.role),
         "inside_out": s.inside_out,

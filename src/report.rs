@@ -12,160 +12,200 @@
 use std::io::{self, Write};
 use std::path::PathBuf;
 
-use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
 use crate::atomic::AtomicFile;
 use crate::formats::Format;
 use crate::rules::{Finding, Status};
 use crate::topology::{Analysis, Role, Shell};
 
-/// The column names in order (the header the writer emits).
-pub const COLUMNS: [&str; 44] = [
-    "path",
-    "mesh",
-    "format",
-    "status",
-    "message",
-    "vertices",
-    "welded_vertices",
-    "faces",
-    "degenerate_faces",
-    "zero_area_faces",
-    "duplicate_faces",
-    "invalid_vertices",
-    "unreferenced_vertices",
-    "edges",
-    "border_edges",
-    "nonmanifold_edges",
-    "nonmanifold_vertices",
-    "inconsistent_edges",
-    "components",
-    "shells",
-    "holes",
-    "orientable",
-    "oriented",
-    "inside_out_shells",
-    "cavities",
-    "solids",
-    "euler",
-    "genus",
-    "volume",
-    "area",
-    "bbox_min_x",
-    "bbox_min_y",
-    "bbox_min_z",
-    "bbox_max_x",
-    "bbox_max_y",
-    "bbox_max_z",
-    "repaired_path",
-    "repairs",
-    "millis",
-    "invalid_faces",
-    "mirrored_instances",
-    "findings",
-    "status_after",
-    "findings_after",
-];
+/// The report's columns, in order: each field's name and type, listed once. The [`Row`] struct,
+/// [`COLUMNS`], the CSV cells ([`Row::cells`], [`Row::from_cells`]) and the JSON object
+/// ([`Row::json`]) are all made from this list, and how a cell is written, read back and typed in
+/// JSON follows its field's type ([`Cell`]), so a new column is one line here.
+macro_rules! columns {
+    ($($(#[$doc:meta])* $name:ident: $ty:ty,)*) => {
+        /// One line of the CSV report. Field order is column order. A row reads back from its
+        /// cells exactly (floats print in a form that reads back to the same number), which the
+        /// cache, `--baseline` and `merge` rely on.
+        #[derive(Debug, Clone, PartialEq, Default)]
+        pub struct Row {
+            $($(#[$doc])* pub $name: $ty,)*
+        }
 
-/// One line of the CSV report. Field order is column order (checked against [`COLUMNS`] by a test).
-/// A row reads back from its CSV cells exactly (floats print in shortest round-trip form), which
-/// the cache, `--baseline` and `merge` rely on.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-pub struct Row {
-    pub path: String,
-    pub mesh: String,
-    pub format: String,
-    #[serde(with = "status_cell")]
-    pub status: Option<Status>,
-    pub message: String,
-    pub vertices: Option<usize>,
-    pub welded_vertices: Option<usize>,
-    pub faces: Option<usize>,
-    pub degenerate_faces: Option<usize>,
-    pub zero_area_faces: Option<usize>,
-    pub duplicate_faces: Option<usize>,
-    pub invalid_vertices: Option<usize>,
-    pub unreferenced_vertices: Option<usize>,
-    pub edges: Option<usize>,
-    pub border_edges: Option<usize>,
-    pub nonmanifold_edges: Option<usize>,
-    pub nonmanifold_vertices: Option<usize>,
-    pub inconsistent_edges: Option<usize>,
-    pub components: Option<usize>,
-    pub shells: Option<usize>,
-    pub holes: Option<usize>,
-    pub orientable: Option<bool>,
-    pub oriented: Option<bool>,
-    pub inside_out_shells: Option<usize>,
-    pub cavities: Option<usize>,
-    pub solids: Option<usize>,
-    pub euler: Option<i64>,
-    pub genus: Option<i64>,
-    #[serde(with = "float_cell")]
-    pub volume: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub area: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub bbox_min_x: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub bbox_min_y: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub bbox_min_z: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub bbox_max_x: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub bbox_max_y: Option<f64>,
-    #[serde(with = "float_cell")]
-    pub bbox_max_z: Option<f64>,
-    pub repaired_path: String,
-    pub repairs: String,
-    #[serde(with = "float_cell")]
-    pub millis: Option<f64>,
-    pub invalid_faces: Option<usize>,
-    pub mirrored_instances: Option<u32>,
-    pub findings: String,
+        /// The column names in order (the header the writer emits).
+        pub const COLUMNS: &[&str] = &[$(stringify!($name)),*];
+
+        impl Row {
+            /// The cells in column order, as the CSV writes them.
+            pub fn cells(&self) -> Vec<String> {
+                vec![$(self.$name.cell()),*]
+            }
+
+            /// The row these cells are (in column order, as [`Row::cells`] writes them). The error
+            /// names the column whose cell does not read as its type.
+            pub fn from_cells<'a>(cells: impl IntoIterator<Item = &'a str>) -> Result<Row, String> {
+                let mut cells = cells.into_iter();
+                let row = Row {
+                    $($name: {
+                        let cell = cells
+                            .next()
+                            .ok_or_else(|| format!("no `{}` column", stringify!($name)))?;
+                        Cell::parse(cell).ok_or_else(|| {
+                            format!("`{cell}` is not a valid `{}` cell", stringify!($name))
+                        })?
+                    },)*
+                };
+                match cells.next() {
+                    None => Ok(row),
+                    Some(_) => Err(format!("more than {} cells", COLUMNS.len())),
+                }
+            }
+
+            /// The row as a JSON object: every column under its name, in column order, typed.
+            pub fn json(&self) -> serde_json::Map<String, serde_json::Value> {
+                let mut object = serde_json::Map::new();
+                $(object.insert(stringify!($name).to_owned(), self.$name.json());)*
+                object
+            }
+        }
+    };
+}
+
+columns! {
+    path: String,
+    mesh: String,
+    format: String,
+    status: Option<Status>,
+    message: String,
+    vertices: Option<usize>,
+    welded_vertices: Option<usize>,
+    faces: Option<usize>,
+    degenerate_faces: Option<usize>,
+    zero_area_faces: Option<usize>,
+    duplicate_faces: Option<usize>,
+    invalid_vertices: Option<usize>,
+    unreferenced_vertices: Option<usize>,
+    edges: Option<usize>,
+    border_edges: Option<usize>,
+    nonmanifold_edges: Option<usize>,
+    nonmanifold_vertices: Option<usize>,
+    inconsistent_edges: Option<usize>,
+    components: Option<usize>,
+    shells: Option<usize>,
+    holes: Option<usize>,
+    orientable: Option<bool>,
+    oriented: Option<bool>,
+    inside_out_shells: Option<usize>,
+    cavities: Option<usize>,
+    solids: Option<usize>,
+    euler: Option<i64>,
+    genus: Option<i64>,
+    volume: Option<f64>,
+    area: Option<f64>,
+    bbox_min_x: Option<f64>,
+    bbox_min_y: Option<f64>,
+    bbox_min_z: Option<f64>,
+    bbox_max_x: Option<f64>,
+    bbox_max_y: Option<f64>,
+    bbox_max_z: Option<f64>,
+    repaired_path: String,
+    repairs: String,
+    millis: Option<f64>,
+    invalid_faces: Option<usize>,
+    mirrored_instances: Option<u32>,
+    findings: String,
     /// The status of the repaired copy when scanned again (empty: no copy written).
-    pub status_after: String,
+    status_after: String,
     /// The repaired copy's findings, `rule:count;...` like `findings` (empty: none, or no copy).
-    pub findings_after: String,
+    findings_after: String,
 }
 
-mod float_cell {
-    use super::*;
+/// How a column's type is written in a CSV cell, read back from one and typed in JSON. Undefined
+/// values (`None`) are empty cells and JSON `null`.
+pub trait Cell: Sized {
+    /// The cell's text.
+    fn cell(&self) -> String;
+    /// The value a cell's text stands for; `None` when it does not read as this type.
+    fn parse(cell: &str) -> Option<Self>;
+    fn json(&self) -> serde_json::Value;
+}
 
-    pub fn serialize<S: Serializer>(value: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
-        match value {
-            Some(v) => s.serialize_str(&v.to_string()),
-            None => s.serialize_str(""),
-        }
+impl Cell for String {
+    fn cell(&self) -> String {
+        self.clone()
     }
 
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-        let cell = String::deserialize(d)?;
-        if cell.is_empty() {
-            return Ok(None);
-        }
-        cell.parse()
-            .map(Some)
-            .map_err(|_| serde::de::Error::custom(format!("`{cell}` is not a number")))
+    fn parse(cell: &str) -> Option<String> {
+        Some(cell.to_owned())
+    }
+
+    fn json(&self) -> serde_json::Value {
+        serde_json::Value::String(self.clone())
     }
 }
 
-mod status_cell {
-    use super::*;
+/// Counts, integers and booleans: their `Display` text, JSON numbers and booleans.
+macro_rules! plain_cell {
+    ($($ty:ty),*) => {$(
+        impl Cell for Option<$ty> {
+            fn cell(&self) -> String {
+                self.map_or_else(String::new, |v| v.to_string())
+            }
 
-    pub fn serialize<S: Serializer>(value: &Option<Status>, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(value.map_or("", Status::name))
+            fn parse(cell: &str) -> Option<Option<$ty>> {
+                if cell.is_empty() {
+                    Some(None)
+                } else {
+                    cell.parse().ok().map(Some)
+                }
+            }
+
+            fn json(&self) -> serde_json::Value {
+                serde_json::json!(self)
+            }
+        }
+    )*};
+}
+
+plain_cell!(usize, u32, i64, bool);
+
+/// Floats: Rust's `Display` text (the shortest digits that read back to the same number, never an
+/// exponent: `0.5`, `1`, `0.0000001`); in JSON a number, or `null` when not finite (JSON has no
+/// infinity).
+impl Cell for Option<f64> {
+    fn cell(&self) -> String {
+        self.map_or_else(String::new, |v| v.to_string())
     }
 
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Status>, D::Error> {
-        let cell = String::deserialize(d)?;
+    fn parse(cell: &str) -> Option<Option<f64>> {
         if cell.is_empty() {
-            return Ok(None);
+            Some(None)
+        } else {
+            cell.parse().ok().map(Some)
         }
-        Status::from_name(&cell)
-            .map(Some)
-            .ok_or_else(|| serde::de::Error::custom(format!("unknown status `{cell}`")))
+    }
+
+    fn json(&self) -> serde_json::Value {
+        self.and_then(serde_json::Number::from_f64)
+            .map_or(serde_json::Value::Null, serde_json::Value::Number)
+    }
+}
+
+/// A status: its name.
+impl Cell for Option<Status> {
+    fn cell(&self) -> String {
+        self.map_or("", Status::name).to_owned()
+    }
+
+    fn parse(cell: &str) -> Option<Option<Status>> {
+        if cell.is_empty() {
+            Some(None)
+        } else {
+            Status::from_name(cell).map(Some)
+        }
+    }
+
+    fn json(&self) -> serde_json::Value {
+        self.map_or(serde_json::Value::Null, |s| s.name().into())
     }
 }
 
@@ -396,7 +436,9 @@ impl CsvReport {
     }
 
     pub fn write(&mut self, row: &Row) -> io::Result<()> {
-        self.writer()?.serialize(row).map_err(io::Error::other)
+        self.writer()?
+            .write_record(row.cells())
+            .map_err(io::Error::other)
     }
 
     /// Flushes the rows and, for a file, renames the temporary file over the target.
@@ -425,14 +467,29 @@ mod tests {
         std::fs::read_to_string(path).unwrap()
     }
 
+    /// Every cell reads back as what it was written from, and a cell of the wrong type is an
+    /// error that names its column.
     #[test]
-    fn row_fields_are_the_columns_in_order() {
-        let text = {
-            let mut w = csv::Writer::from_writer(Vec::new());
-            w.serialize(Row::default()).unwrap();
-            String::from_utf8(w.into_inner().unwrap()).unwrap()
+    fn cells_read_back_exactly() {
+        let row = Row {
+            path: "a,b \"c\".obj".into(),
+            status: Some(Status::Warn),
+            faces: Some(12),
+            euler: Some(-2),
+            orientable: Some(false),
+            volume: Some(0.1 + 0.2),
+            bbox_min_x: Some(-1e-300),
+            area: Some(1e300),
+            ..Row::default()
         };
-        assert_eq!(text.lines().next().unwrap(), COLUMNS.join(","));
+        let cells = row.cells();
+        assert_eq!(cells.len(), COLUMNS.len());
+        assert_eq!(Row::from_cells(cells.iter().map(String::as_str)), Ok(row));
+        let mut bad = Row::default().cells();
+        bad[7] = "seven".into();
+        let error = Row::from_cells(bad.iter().map(String::as_str)).unwrap_err();
+        assert_eq!(error, "`seven` is not a valid `faces` cell");
+        assert!(Row::from_cells(["a"]).is_err());
     }
 
     #[test]
