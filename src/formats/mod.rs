@@ -343,4 +343,22 @@ mod tests {
         assert_eq!(Format::extension_list(), ".obj .gltf .glb .stl .ply .off");
         assert_eq!(Format::of_path(Path::new("a.txt")), None);
     }
+
+    #[test]
+    fn side_files_are_found_in_obj_gltf_and_glb() {
+        assert_eq!(
+            side_file_names(Format::Obj, b"v 0 0 0\n  mtllib a b.mtl\nmtllibx c\n"),
+            ["a b.mtl", "a", "b.mtl"]
+        );
+        let gltf = br#"{"buffers":[{"uri":"../buffers/x%20y.bin"},{"uri":"data:,"}],"images":[{"uri":"t.png"}]}"#;
+        assert_eq!(
+            side_file_names(Format::Gltf, gltf),
+            ["../buffers/x%20y.bin", "t.png"]
+        );
+        let mut glb = b"glTF\x02\0\0\0\0\0\0\0".to_vec();
+        glb.extend_from_slice(&(gltf.len() as u32).to_le_bytes());
+        glb.extend_from_slice(b"JSON");
+        glb.extend_from_slice(gltf);
+        assert_eq!(side_file_names(Format::Glb, &glb).len(), 2);
+    }
 }
