@@ -15,13 +15,13 @@ use std::process::Command;
 use std::time::{Instant, SystemTime};
 
 use meshvet::config::Settings;
-use meshvet::topology::places;
-use meshvet::{analyse, picture, Mesh, Options};
 use meshvet::html::{HtmlReport, Meta};
 use meshvet::report::Row;
 use meshvet::rules::{Finding, Rule, Severity, Status};
 use meshvet::scan::{self, Extras, Outcome};
+use meshvet::topology::places;
 use meshvet::walk::{walk, Filter};
+use meshvet::{analyse, picture, Mesh, Options};
 
 #[path = "../tests/shapes/mod.rs"]
 #[allow(dead_code)]

@@ -1,12 +1,14 @@
 //! Where a mesh's problems are, as geometry a picture can mark: border edges, non-manifold edges and
-//! vertices, and the faces of inside-out shells, over the welded vertices.
+//! vertices, inconsistently wound edges, and the faces of inside-out shells, over the welded
+//! vertices.
 //!
 //! [`analyse`](super::analyse) only counts; this pass rebuilds the same Corner Table (same welding,
 //! same faces left out) and names the places. It is only run for reports that draw meshes, so plain
 //! scans never pay for it. Its counts equal the analysis's (a test checks every rule fixture):
 //!
 //! - a border edge is an edge with `O[c] == c`; a non-manifold edge one listed by
-//!   [`CornerTable::nonmanifold_edges`];
+//!   [`CornerTable::nonmanifold_edges`]; an inconsistent edge a manifold edge whose two faces
+//!   traverse it in the same direction (`O[c]` set, `c` not consistent with it);
 //! - a non-manifold vertex has two or more **fans**: sets of its corners linked through manifold
 //!   edges at the vertex (union-find over corners);
 //! - components are faces linked through manifold and non-manifold edges, numbered in order of their
@@ -32,6 +34,9 @@ pub struct Places {
     pub border_edges: Vec<[u32; 2]>,
     /// Edges bounding three or more faces, lower vertex first, sorted.
     pub nonmanifold_edges: Vec<[u32; 2]>,
+    /// Manifold edges whose two faces traverse them in the same direction (one of the two faces is
+    /// flipped relative to the other), lower vertex first, sorted.
+    pub inconsistent_edges: Vec<[u32; 2]>,
     /// Vertices with two or more fans, sorted.
     pub nonmanifold_vertices: Vec<u32>,
 }
@@ -62,6 +67,15 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
     let mut nonmanifold_edges: Vec<[u32; 2]> =
         table.nonmanifold_edges().map(|cs| edge(cs[0])).collect();
     nonmanifold_edges.sort_unstable();
+    let mut inconsistent_edges: Vec<[u32; 2]> = (0..corners)
+        .filter(|&c| {
+            table
+                .opposite(c)
+                .is_some_and(|o| c < o && !table.is_consistent(c))
+        })
+        .map(edge)
+        .collect();
+    inconsistent_edges.sort_unstable();
 
     // Fans: across each manifold edge, the corners at its two ends are in one fan.
     let mut fan: Vec<u32> = (0..corners).collect();
@@ -136,6 +150,7 @@ pub fn places(mesh: &Mesh, options: &Options, analysis: &Analysis) -> Places {
         inside_out,
         border_edges,
         nonmanifold_edges,
+        inconsistent_edges,
         nonmanifold_vertices,
     }
 }
@@ -152,6 +167,7 @@ mod tests {
         assert_eq!(p.border_edges.len(), a.border_edges);
         assert_eq!(p.nonmanifold_edges.len(), a.nonmanifold_edges);
         assert_eq!(p.nonmanifold_vertices.len(), a.nonmanifold_vertices);
+        assert_eq!(p.inconsistent_edges.len(), a.inconsistent_edges);
         let inside_out_faces: usize = a
             .shells
             .iter()
@@ -202,6 +218,21 @@ mod tests {
         assert_eq!(fin.nonmanifold_edges, [[0, 1]]);
     }
 
+    /// Two triangles over edge 1-2, both traversing it from 1 to 2 (`0 1 2` has 1->2, `1 2 3` has
+    /// 1->2 too): the one manifold edge is inconsistent; the four outer edges are borders.
+    #[test]
+    fn a_flipped_neighbour_marks_the_shared_edge() {
+        let positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ];
+        let p = check(&Mesh::new(positions, vec![[0, 1, 2], [1, 2, 3]]));
+        assert_eq!(p.inconsistent_edges, [[1, 2]]);
+        assert_eq!(p.border_edges.len(), 4);
+    }
+
     /// Every rule fixture: the places agree with the analysis's counts.
     #[test]
     fn fixtures_agree_with_the_analysis() {
@@ -209,6 +240,7 @@ mod tests {
         use crate::walk::{walk, Filter};
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
         let mut meshes = 0;
+        let mut inconsistent = 0;
         for source in walk(std::slice::from_ref(&root), &Filter::everything()) {
             let Some(format) = source.format else {
                 continue;
@@ -218,10 +250,14 @@ mod tests {
                 limits: Default::default(),
             };
             for mesh in formats::read(&source.path, format, &context).unwrap_or_default() {
-                check(&mesh);
+                inconsistent += check(&mesh).inconsistent_edges.len();
                 meshes += 1;
             }
         }
         assert!(meshes >= 20, "{meshes} meshes");
+        assert!(
+            inconsistent >= 3,
+            "the inconsistent-winding fixture has three"
+        );
     }
 }
