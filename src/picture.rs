@@ -56,14 +56,15 @@ const SEE_THROUGH: u8 = 2;
 
 /// The style the drawing needs from the page that shows it: faces take their `color` as fill and
 /// stroke (stroked in their own colour so no seam shows between neighbours), class `g` for the
-/// translucent ones; marks are classes `b` (border edges), `i` (inconsistently wound edges), `n`
-/// (non-manifold edges) and `v` (non-manifold vertices, drawn as round dots). Kept out of each
-/// picture to save ~300 bytes a mesh.
+/// translucent ones; marks are classes `b` (border edges), `i` (inconsistently wound edges, with a
+/// halo `w` at each one's middle), `n` (non-manifold edges) and `v` (non-manifold vertices, drawn
+/// as round dots). Kept out of each picture to save ~300 bytes a mesh.
 pub const STYLE: &str =
     ".pic path{fill:currentColor;stroke:currentColor;stroke-width:.6;stroke-linejoin:round}\
 .pic .g{opacity:.3}\
-.pic .b,.pic .i,.pic .n,.pic .v{fill:none;stroke-linecap:round}\
+.pic .b,.pic .i,.pic .w,.pic .n,.pic .v{fill:none;stroke-linecap:round}\
 .pic .b{stroke:#e80;stroke-width:2}.pic .i{stroke:#087;stroke-width:2.5;stroke-dasharray:5 3}\
+.pic .w{stroke:#087;stroke-width:11;opacity:.4}\
 .pic .n{stroke:#d11;stroke-width:2.5}.pic .v{stroke:#d11;stroke-width:7}";
 
 /// The views: (azimuth, elevation) in degrees, Y up.
@@ -368,6 +369,16 @@ fn draw_marks(svg: &mut String, screen: &Screen, places: &Places) {
     };
     edges(svg, &places.border_edges, "b");
     edges(svg, &places.inconsistent_edges, "i");
+    if !places.inconsistent_edges.is_empty() {
+        // A halo at each one's middle: flipped faces are often tiny, and so are their edges.
+        svg.push_str("<path class='w' d='");
+        for e in sampled(&places.inconsistent_edges, MAX_MARKS) {
+            let (x0, y0) = screen.at(&points[e[0] as usize]);
+            let (x1, y1) = screen.at(&points[e[1] as usize]);
+            let _ = write!(svg, "M{} {}h0", (x0 + x1) / 2, (y0 + y1) / 2);
+        }
+        svg.push_str("'/>");
+    }
     edges(svg, &places.nonmanifold_edges, "n");
     if !places.nonmanifold_vertices.is_empty() {
         svg.push_str("<path class='v' d='");
@@ -679,6 +690,11 @@ mod tests {
             let d = m.split('\'').next().unwrap();
             assert_eq!(d.matches('M').count(), 1, "one segment: {d}");
         }
+        assert_eq!(
+            svg.matches("<path class='w' d='M").count(),
+            2,
+            "a halo in each view"
+        );
         assert!(
             STYLE.contains(".pic .i{stroke:"),
             "the mark has its own colour"
