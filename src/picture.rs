@@ -163,11 +163,9 @@ fn see_through(places: &Places) -> Vec<bool> {
         }
         let part = &mut parts[part_of_root[root] as usize];
         for &v in t {
-            let p = &places.points[v as usize];
-            for k in 0..3 {
-                part.lo[k] = part.lo[k].min(p[k]);
-                part.hi[k] = part.hi[k].max(p[k]);
-            }
+            let p = places.points[v as usize];
+            part.lo = [0, 1, 2].map(|k| part.lo[k].min(p[k]));
+            part.hi = [0, 1, 2].map(|k| part.hi[k].max(p[k]));
         }
         part_of_face.push(part_of_root[root]);
     }
