@@ -88,9 +88,9 @@ fn console_lines(stderr: &[u8]) -> Vec<String> {
 }
 
 /// Checks run inside the page (after its own script has drawn the table), configured by `EXPECT`:
-/// `meshNames` (whether some row has a mesh name), `longMessage` / `longPath` (report paths of rows
-/// whose message / path is longer than its cell, or null), `pictures` (run the picture checks; the
-/// page is of `sample_assets/`). Writes `LAYOUT PASS` or `LAYOUT FAIL <problems>` and a few widths
+/// `meshNames` (whether some row has a mesh name), `longMessage` / `longPath` / `longMesh` (report
+/// paths of rows whose message / path / mesh name is longer than its cell, or absent), `pictures`
+/// (run the picture checks; the page is of `sample_assets/`). Writes `LAYOUT PASS` or `LAYOUT FAIL <problems>` and a few widths
 /// into `<pre id="layout-check">`. The page is scrolled back to its top when done (a headless
 /// screenshot of a page its script scrolled leaves the top unpainted).
 const CHECKS: &str = r##"
@@ -152,6 +152,12 @@ const CHECKS: &str = r##"
       check(cell.textContent === EXPECT.longPath, "the cell does not hold the whole path");
       cut(dir, "the long path's folders");
       check(textWidth(file) <= boxWidth(file), "the file name is cut (" + textWidth(file) + " in " + boxWidth(file) + " px) although the folders could give way");
+    }
+    if (EXPECT.longMesh) {
+      var named = cellOf(EXPECT.longMesh, "mesh"), name = ROWS[rowOf(EXPECT.longMesh)][C.mesh];
+      check(name.length > 60, "the long mesh name has only " + name.length + " characters");
+      check(named.title === name && named.textContent === name, "the mesh cell or its tooltip is not the whole name");
+      cut(named, "the long mesh name");
     }
     if (EXPECT.pictures) {
       // An inside-out shell: each face's centre, and points between it and its corners, hit a face.
@@ -296,11 +302,7 @@ fn the_report_of_the_sample_assets_works_in_a_browser() {
 
     // The table at a laptop's width, with the mesh column (some samples name their meshes), and
     // the pictures of the inside-out shell, the hollow block and the inconsistent winding.
-    let checked = with_checks(
-        &page,
-        "checked.html",
-        "{meshNames: true, longMessage: null, longPath: null, pictures: true}",
-    );
+    let checked = with_checks(&page, "checked.html", "{meshNames: true, pictures: true}");
     let run = browse(
         &browser,
         &profile,
@@ -336,8 +338,9 @@ fn the_report_of_the_sample_assets_works_in_a_browser() {
     println!("screenshot: {}", shot.display());
 }
 
-/// A tree without mesh names, holding a path too long for its cell at any width and a PLY file
-/// whose broken header gives a message of about 300 characters: at 1366x768 and 1920x1080, status,
+/// A tree without mesh names, holding a path too long for its cell at any width, a PLY file whose
+/// broken header gives a message of about 300 characters and a glTF file whose message holds a long
+/// absolute path (one word of ~110 characters): at 1366x768 and 1920x1080, status,
 /// path and findings stay on screen, the long texts end in an ellipsis with the whole in a
 /// tooltip (the path's folders give way before its file name) and there is no mesh column.
 #[test]
@@ -371,6 +374,18 @@ fn the_table_fits_a_laptop_screen() {
     std::fs::write(
         tree.join("broken/header.ply"),
         "ply\nformat ascii 1.0\nelement vertex 3x\nend_header\n",
+    )
+    .unwrap();
+    // Its message names the missing file twice, once as an absolute path: a long word a table
+    // laid out by its content would widen the findings column for, off the screen.
+    std::fs::write(
+        tree.join("broken/missing-buffer.gltf"),
+        r#"{"asset": {"version": "2.0"},
+            "buffers": [{"uri": "exported-geometry-of-the-spider-queen-for-the-second-level-lod0-v7.bin", "byteLength": 36}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0}"#,
     )
     .unwrap();
     let page = dir.path().join("report.html");
@@ -424,4 +439,65 @@ fn the_table_fits_a_laptop_screen() {
         );
         println!("screenshot: {}", shot.display());
     }
+}
+
+/// A mesh name of 96 characters without a space (as exporters write them) beside a few unnamed
+/// meshes: at 1366x768 the mesh column is there, its cell is cut by an ellipsis with the whole name
+/// in its tooltip, and it pushes neither the findings nor anything else off the screen (a table
+/// laid out by its content widened the mesh column to the whole name).
+#[test]
+fn a_long_mesh_name_stays_in_its_column() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("assets");
+    std::fs::create_dir_all(&tree).unwrap();
+    for name in [
+        "hole.obj",
+        "non-manifold-edge.obj",
+        "inside-out-shell.obj",
+        "cavity.obj",
+        "duplicate-face.obj",
+        "zero-area-face.obj",
+    ] {
+        std::fs::copy(root.join("rules").join(name), tree.join(name)).unwrap();
+    }
+    let mesh = "SM_spider_queen_body_with_all_eight_legs_and_the_abdomen_LOD0_exported_from_the_modelling_tool";
+    // One triangle, (0,0,0) (1,0,0) (0,1,0): nine little-endian f32, base64 of their 36 bytes.
+    let gltf = format!(
+        r#"{{"asset": {{"version": "2.0"}},
+            "buffers": [{{"uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA", "byteLength": 36}}],
+            "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}}],
+            "meshes": [{{"name": "{mesh}", "primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+            "nodes": [{{"mesh": 0}}], "scenes": [{{"nodes": [0]}}], "scene": 0}}"#
+    );
+    std::fs::write(tree.join("named.gltf"), gltf).unwrap();
+    let page = dir.path().join("report.html");
+    let scan = Command::new(env!("CARGO_BIN_EXE_meshvet"))
+        .current_dir(dir.path())
+        .args(["scan", "assets", "--quiet", "--html"])
+        .arg(&page)
+        .output()
+        .unwrap();
+    assert_eq!(scan.status.code(), Some(1), "{scan:?}");
+    let Some(browser) = chromium() else {
+        println!("skipped: chromium is not installed (apt-get install chromium)");
+        return;
+    };
+    let checked = with_checks(
+        &page,
+        "checked.html",
+        "{meshNames: true, longMesh: 'named.gltf'}",
+    );
+    let run = browse(
+        &browser,
+        &dir.path().join("profile"),
+        &file_url(&checked),
+        &["--dump-dom", "--window-size=1366,768"],
+    );
+    let verdict = layout_verdict(&run.stdout);
+    println!("1366x768: {verdict}");
+    assert!(verdict.starts_with("LAYOUT PASS"), "{verdict}");
+    let console = console_lines(&run.stderr);
+    assert!(console.is_empty(), "console messages: {console:#?}");
 }
