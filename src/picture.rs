@@ -22,7 +22,7 @@
 //! view, at most [`MAX_MARKS`] segments each (evenly sampled beyond). Attributes use single quotes (the
 //! SVG fits in a JSON string unescaped); the styles shared by every picture are in [`STYLE`], which
 //! the page that shows pictures includes once. A cube draws in ~1 KB, a mesh simplified to
-//! [`MAX_FACES`] in ~70-130 KB. No `xmlns`: the page's HTML parser puts inline `<svg>` in the SVG
+//! [`MAX_FACES`] in ~70-150 KB. No `xmlns`: the page's HTML parser puts inline `<svg>` in the SVG
 //! namespace.
 
 use std::fmt::Write;
