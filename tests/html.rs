@@ -7,8 +7,8 @@
 //! at 1366x768 and 1920x1080 the status, path and findings cells of every row lie inside the
 //! viewport and the page never scrolls sideways; a long message is cut by an ellipsis with the
 //! whole text in its tooltip; the mesh column is there only when some mesh has a name; in the
-//! pictures, every point inside a face of an inside-out shell hits a face (no gap where faces
-//! overlap), the solid around the hollow block's cavity is see-through with the cavity under it,
+//! pictures, no face is cancelled by another of its path, every point inside a face of an
+//! inside-out shell hits a face (no gap where faces overlap), the solid around the hollow block's cavity is see-through with the cavity under it,
 //! and inconsistently wound edges are marked. Screenshots of the table go to
 //! `target/tmp/table-1366x768.png` and `table-1920x1080.png`.
 //!
@@ -160,6 +160,31 @@ const CHECKS: &str = r##"
       cut(named, "the long mesh name");
     }
     if (EXPECT.pictures) {
+      // Every picture: the centre of each face lies in the fill of its own path (the nonzero rule
+      // cancels a face where another of its path overlaps it with the opposite turn).
+      var pictures = 0, centres = 0, cancelled = [];
+      ROWS.forEach(function (row, r) {
+        if (row[NC + 3] < 0) return;
+        openDetail(r);
+        pictures++;
+        var svg = document.querySelector("#picture svg"), lost = 0;
+        svg.querySelectorAll("path[color]").forEach(function (p) {
+          p.getAttribute("d").split("z").forEach(function (outline) {
+            var n = outline.replace("M", "").trim().split(/\s+/).map(Number);
+            if (n.length !== 6) return;
+            var centre = svg.createSVGPoint();
+            centre.x = (n[0] + n[2] + n[4]) / 3;
+            centre.y = (n[1] + n[3] + n[5]) / 3;
+            centres++;
+            if (!p.isPointInFill(centre)) lost++;
+          });
+        });
+        if (lost > 0) cancelled.push(row[C.path] + " " + row[C.mesh] + ": " + lost);
+      });
+      notes.pictures = pictures;
+      notes.faceCentres = centres;
+      check(pictures >= 15 && centres > 1000, "only " + pictures + " pictures, " + centres + " faces");
+      check(cancelled.length === 0, "faces cancelled in " + cancelled.join(", "));
       // An inside-out shell: each face's centre, and points between it and its corners, hit a face.
       openDetail(rowOf("rules/inside-out-shell.obj"));
       var svg = document.querySelector("#picture svg"), tested = 0, gaps = 0;
