@@ -4,13 +4,14 @@
 //! message, and save a screenshot of a detail view to `target/tmp/report.png`.
 //!
 //! Layout and pictures are checked by [`CHECKS`], a script the test appends to a copy of the page:
-//! at 1366x768 and 1920x1080 the status, path and findings cells of every row lie inside the
-//! viewport and the page never scrolls sideways; a long message is cut by an ellipsis with the
-//! whole text in its tooltip; the mesh column is there only when some mesh has a name; in the
-//! pictures, no face is cancelled by another of its path, every point inside a face of an
-//! inside-out shell hits a face (no gap where faces overlap), the solid around the hollow block's cavity is see-through with the cavity under it,
+//! at 1366x768, 1440x900 and 1920x1080 the status, path and findings cells of every row lie inside
+//! the viewport and the page never scrolls sideways; a long message, path or mesh name is cut by an
+//! ellipsis with the whole text in its tooltip (a path's folders before its file name); the mesh
+//! column is there only when some mesh has a name. In the pictures, no face is cancelled by another
+//! of its path, every point inside a face of an inside-out shell hits a face (no gap where faces
+//! overlap), the solid around the hollow block's cavity is see-through with the cavity under it,
 //! and inconsistently wound edges are marked. Screenshots of the table go to
-//! `target/tmp/table-1366x768.png` and `table-1920x1080.png`.
+//! `target/tmp/table-WIDTHxHEIGHT.png`.
 //!
 //! Skips with a message when Chromium is not installed (`apt-get install chromium`); CI installs it.
 
@@ -365,7 +366,7 @@ fn the_report_of_the_sample_assets_works_in_a_browser() {
 
 /// A tree without mesh names, holding a path too long for its cell at any width, a PLY file whose
 /// broken header gives a message of about 300 characters and a glTF file whose message holds a long
-/// absolute path (one word of ~110 characters): at 1366x768 and 1920x1080, status,
+/// absolute path (one word of ~110 characters): at 1366x768, 1440x900 and 1920x1080, status,
 /// path and findings stay on screen, the long texts end in an ellipsis with the whole in a
 /// tooltip (the path's folders give way before its file name) and there is no mesh column.
 #[test]
@@ -429,7 +430,7 @@ fn the_table_fits_a_laptop_screen() {
         "{{meshNames: false, longMessage: 'broken/header.ply', longPath: '{long_path}', pictures: false}}"
     );
     let checked = with_checks(&page, "checked.html", &expect);
-    for (width, height) in [(1366, 768), (1920, 1080)] {
+    for (width, height) in [(1366, 768), (1440, 900), (1920, 1080)] {
         let size = format!("--window-size={width},{height}");
         let profile = dir.path().join(format!("profile-{width}"));
         let run = browse(
