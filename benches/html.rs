@@ -2,9 +2,12 @@
 //! out) in 25 top-level folders. Prints the scan time without and with the details the page needs
 //! (shell table and picture), the time to render and write the page, and its size; then a page of
 //! 100,000 rows, opened in headless Chromium with `#selftest` when it is installed, for the time to
-//! load, sort and filter it.
+//! load, sort and filter it. Last, the pictures of a few big meshes (tori of 80,000 to 180,000
+//! faces: whole, inside out, hollow; and 5,000 separate cubes): the time to find their places and
+//! draw them, and the bytes each picture adds to a page.
 //!
 //!     cargo bench --bench html
+//!     cargo bench --bench html -- pictures     # the big pictures only
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -17,7 +20,14 @@ use meshvet::report::Outcome;
 use meshvet::report::Row;
 use meshvet::rules::{Finding, Rule, Severity, Status};
 use meshvet::scan::{self, Extras};
+use meshvet::topology::analyse_keeping;
+use meshvet::topology::places;
 use meshvet::walk::{walk, Filter};
+use meshvet::{picture, Mesh, Options};
+
+#[path = "../tests/shapes/mod.rs"]
+#[allow(dead_code)]
+mod shapes;
 
 const FILES: usize = 10_000;
 
@@ -87,6 +97,10 @@ fn chromium() -> Option<std::path::PathBuf> {
 }
 
 fn main() {
+    if std::env::args().skip(1).any(|a| a == "pictures") {
+        big_pictures();
+        return;
+    }
     let dir = tempfile::tempdir().unwrap();
     tree(dir.path());
     let sources = walk(&[dir.path().to_owned()], &Filter::everything());
@@ -208,6 +222,66 @@ fn main() {
         "chromium, 100,000 rows (whole run {:.1} s): {verdict}",
         start.elapsed().as_secs_f64()
     );
+    big_pictures();
+}
+
+/// The torus with its tube shrunk by `factor` toward the tube's core circle (radius 2 in z = 0).
+fn shrunk_tube(mesh: &Mesh, factor: f64) -> Mesh {
+    let positions = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let r = (p[0] * p[0] + p[1] * p[1]).sqrt();
+            let core = [p[0] * shapes::TORUS_R / r, p[1] * shapes::TORUS_R / r, 0.0];
+            [0, 1, 2].map(|k| core[k] + factor * (p[k] - core[k]))
+        })
+        .collect();
+    Mesh::new(positions, mesh.triangles.clone())
+}
+
+/// Pictures of big meshes: places and drawing time (fastest and slowest of five runs) and size.
+fn big_pictures() {
+    let torus = shapes::torus(200, 200, Some(7));
+    let hollow = shapes::merge(&[
+        shapes::torus(300, 150, Some(7)),
+        shapes::flipped(&shrunk_tube(&shapes::torus(300, 150, Some(8)), 0.5)),
+    ]);
+    let cubes: Vec<Mesh> = (0..5000)
+        .map(|i| {
+            let mut c = shapes::cube();
+            for p in &mut c.positions {
+                p[0] += 2.0 * (i % 100) as f64;
+                p[1] += 2.0 * (i / 100) as f64;
+            }
+            c
+        })
+        .collect();
+    let meshes = [
+        ("torus", torus.clone()),
+        ("inside-out torus", shapes::flipped(&torus)),
+        ("hollow torus", hollow),
+        ("5,000 cubes", shapes::merge(&cubes)),
+    ];
+    let options = Options::default();
+    for (name, mesh) in &meshes {
+        let (analysis, built) = analyse_keeping(mesh, &options);
+        let mut times = Vec::new();
+        let mut bytes = 0;
+        for _ in 0..5 {
+            let start = Instant::now();
+            let svg = picture::draw(&places(&built, &analysis)).expect("a picture");
+            times.push(start.elapsed().as_secs_f64());
+            bytes = svg.len();
+        }
+        times.sort_by(f64::total_cmp);
+        println!(
+            "picture of {name} ({} faces): {:.1}-{:.1} ms, {:.1} KB",
+            mesh.triangles.len(),
+            1e3 * times[0],
+            1e3 * times[4],
+            bytes as f64 / 1e3
+        );
+    }
 }
 
 fn finding(rule: Rule, severity: Severity, count: usize) -> Finding {

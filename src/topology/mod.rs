@@ -9,7 +9,7 @@ mod places;
 
 pub use analyse::{analyse, analyse_keeping};
 pub use built::{build, Built, LeftOut};
-pub use places::{places, Places};
+pub use places::{places, Places, NO_SHELL};
 
 /// How the analysis welds vertices (SPEC 3).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

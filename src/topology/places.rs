@@ -1,5 +1,6 @@
 //! Where a mesh's problems are, as geometry a picture can mark: border edges, non-manifold edges and
-//! vertices, and the faces of inside-out shells, over the welded vertices.
+//! vertices, inconsistently wound edges, and the faces of inside-out shells, over the welded
+//! vertices.
 //!
 //! [`analyse`](super::analyse) only counts; this pass reads the table the analysis built
 //! ([`Built`], kept by scans that draw) and names the places. It is only run for reports that draw
@@ -7,7 +8,8 @@
 //! rule fixture):
 //!
 //! - a border edge is an edge with `O[c] == c`; a non-manifold edge one listed by
-//!   [`CornerTable::nonmanifold_edges`];
+//!   [`CornerTable::nonmanifold_edges`]; an inconsistent edge a manifold edge whose two faces
+//!   traverse it in the same direction (`O[c]` set, `c` not consistent with it);
 //! - a non-manifold vertex has two or more **fans**: sets of its corners linked through manifold
 //!   edges at the vertex (union-find over corners);
 //! - components are faces linked through manifold and non-manifold edges, numbered in order of their
@@ -27,13 +29,24 @@ pub struct Places {
     pub triangles: Vec<[u32; 3]>,
     /// Per face of [`Places::triangles`]: it belongs to an inside-out shell.
     pub inside_out: Vec<bool>,
+    /// Per face of [`Places::triangles`]: the index in [`Places::shells`] of the shell it belongs
+    /// to, or [`NO_SHELL`] when its component is not a shell.
+    pub shell: Vec<u32>,
+    /// The nesting depth and bounding box of every shell, in [`Analysis::shells`] order.
+    pub shells: Vec<(usize, [[f64; 3]; 2])>,
     /// Edges bounding one face, lower vertex first, sorted.
     pub border_edges: Vec<[u32; 2]>,
     /// Edges bounding three or more faces, lower vertex first, sorted.
     pub nonmanifold_edges: Vec<[u32; 2]>,
+    /// Manifold edges whose two faces traverse them in the same direction (one of the two faces is
+    /// flipped relative to the other), lower vertex first, sorted.
+    pub inconsistent_edges: Vec<[u32; 2]>,
     /// Vertices with two or more fans, sorted.
     pub nonmanifold_vertices: Vec<u32>,
 }
+
+/// [`Places::shell`] of a face that is in no shell.
+pub const NO_SHELL: u32 = u32::MAX;
 
 /// Finds the problem places of a mesh from what its analysis built and found (`analysis` is read
 /// for the inside-out shells).
@@ -53,6 +66,15 @@ pub fn places(built: &Built, analysis: &Analysis) -> Places {
     let mut nonmanifold_edges: Vec<[u32; 2]> =
         table.nonmanifold_edges().map(|cs| edge(cs[0])).collect();
     nonmanifold_edges.sort_unstable();
+    let mut inconsistent_edges: Vec<[u32; 2]> = (0..corners)
+        .filter(|&c| {
+            table
+                .opposite(c)
+                .is_some_and(|o| c < o && !table.is_consistent(c))
+        })
+        .map(edge)
+        .collect();
+    inconsistent_edges.sort_unstable();
 
     // Fans: across each manifold edge, the corners at its two ends are in one fan.
     let mut fan: Vec<u32> = (0..corners).collect();
@@ -111,25 +133,29 @@ pub fn places(built: &Built, analysis: &Analysis) -> Places {
         number[r as usize] = i as u32;
     }
     let next = roots.len();
-    let mut flipped_component = vec![false; next];
-    for shell in analysis.shells.iter().filter(|s| s.inside_out) {
-        if let Some(f) = flipped_component.get_mut(shell.component) {
-            *f = true;
+    let mut shell_of_component = vec![NO_SHELL; next];
+    for (i, s) in analysis.shells.iter().enumerate() {
+        if let Some(slot) = shell_of_component.get_mut(s.component) {
+            *slot = i as u32;
         }
     }
-    let inside_out = (0..faces as u32)
-        .map(|t| {
-            let n = number[find(&mut component, t) as usize];
-            flipped_component[n as usize]
-        })
+    let shell: Vec<u32> = (0..faces as u32)
+        .map(|t| shell_of_component[number[find(&mut component, t) as usize] as usize])
+        .collect();
+    let inside_out = shell
+        .iter()
+        .map(|&s| s != NO_SHELL && analysis.shells[s as usize].inside_out)
         .collect();
 
     Places {
         points: built.welded.positions.clone(),
         triangles: table.triangles().to_vec(),
         inside_out,
+        shell,
+        shells: analysis.shells.iter().map(|s| (s.depth, s.bbox)).collect(),
         border_edges,
         nonmanifold_edges,
+        inconsistent_edges,
         nonmanifold_vertices,
     }
 }
@@ -146,6 +172,7 @@ mod tests {
         assert_eq!(p.border_edges.len(), a.border_edges);
         assert_eq!(p.nonmanifold_edges.len(), a.nonmanifold_edges);
         assert_eq!(p.nonmanifold_vertices.len(), a.nonmanifold_vertices);
+        assert_eq!(p.inconsistent_edges.len(), a.inconsistent_edges);
         let inside_out_faces: usize = a
             .shells
             .iter()
@@ -196,6 +223,21 @@ mod tests {
         assert_eq!(fin.nonmanifold_edges, [[0, 1]]);
     }
 
+    /// Two triangles over edge 1-2, both traversing it from 1 to 2 (`0 1 2` has 1->2, `1 2 3` has
+    /// 1->2 too): the one manifold edge is inconsistent; the four outer edges are borders.
+    #[test]
+    fn a_flipped_neighbour_marks_the_shared_edge() {
+        let positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ];
+        let p = check(&Mesh::new(positions, vec![[0, 1, 2], [1, 2, 3]]));
+        assert_eq!(p.inconsistent_edges, [[1, 2]]);
+        assert_eq!(p.border_edges.len(), 4);
+    }
+
     /// Every rule fixture: the places agree with the analysis's counts.
     #[test]
     fn fixtures_agree_with_the_analysis() {
@@ -203,6 +245,7 @@ mod tests {
         use crate::walk::{walk, Filter};
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
         let mut meshes = 0;
+        let mut inconsistent = 0;
         for source in walk(std::slice::from_ref(&root), &Filter::everything()) {
             let Some(format) = source.format else {
                 continue;
@@ -212,10 +255,14 @@ mod tests {
                 limits: Default::default(),
             };
             for mesh in formats::read(&source.path, format, &context).unwrap_or_default() {
-                check(&mesh);
+                inconsistent += check(&mesh).inconsistent_edges.len();
                 meshes += 1;
             }
         }
         assert!(meshes >= 20, "{meshes} meshes");
+        assert!(
+            inconsistent >= 3,
+            "the inconsistent-winding fixture has three"
+        );
     }
 }
