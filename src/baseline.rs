@@ -19,12 +19,13 @@ use crate::report::{Row, COLUMNS};
 use crate::rules::{Severity, Status};
 
 /// One mesh whose result changed since the baseline.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Change {
     pub path: String,
     pub mesh: String,
     /// Status in the baseline; empty when the mesh is new.
     pub before: String,
+    /// Status now.
     pub after: String,
     /// What changed, in words (`newly failing: inside-out-shell`, `new error findings: hole`).
     pub what: String,

@@ -40,7 +40,7 @@ pub struct Config {
     pub repair: Option<RepairConfig>,
 }
 
-/// The `[repair]` table: which repairs `--repair-dir` runs (SPEC 10).
+/// The `[repair]` table: which [repairs](crate::definitions#repairs) `--repair-dir` runs.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RepairConfig {

@@ -1,4 +1,5 @@
-//! The Corner Table (seeds 000 and 003): two flat arrays over corners `c = 3t + k`.
+//! The Corner Table ([definitions](crate::definitions#corner-table)): two flat arrays over
+//! corners `c = 3t + k`.
 //!
 //! ```text
 //!            v(p(c))                 V[c]  the welded vertex of corner c
@@ -6,13 +7,13 @@
 //!            /  \                          (the edge v(n(c)) - v(p(c)))
 //!           / t  \
 //!      v(c) ------ v(n(c))           n(c) next corner of t(c), p(c) = n(n(c))
-//!           \    /                   l(c) = o(n(c)), r(c) = o(p(c)), s(c) = p(l(c)) (swing)
+//!           \    /                   l(c) = o(n(c)), r(c) = o(p(c)), s(c) = p(r(c)) (swing)
 //!            \  /
 //!             \/
 //!           v(o(c))
 //! ```
 //!
-//! Sentinels, as in seed 003 and parry:
+//! Sentinels, as in parry's topology arrays:
 //! - a **border** corner (its opposite edge bounds one face) has `O[c] == c`;
 //! - a corner whose opposite edge bounds three or more faces has `O[c] == NON_MANIFOLD`. It never gets
 //!   a made-up opposite; the faces of such an edge are listed by [`CornerTable::nonmanifold_edges`].
@@ -411,17 +412,17 @@ impl CornerTable {
 
     /// Swing `p(r(c))`: the next corner around `v(c)` on an oriented manifold mesh. When the edge
     /// `v(c)-v(p(c))` is a border it is `n(c)`, the next vertex along the border, so repeated swings
-    /// walk around a hole (seed 003). `None` across a non-manifold edge.
+    /// walk around a hole. `None` across a non-manifold edge.
     ///
-    /// (Seed 003's text defines `l(c) = o(p(c))` and `s(c) = p(l(c))`, its code `l(c) = o(n(c))`;
-    /// with SPEC's `l = o(n)` and `r = o(p)` the swing that turns around `v(c)` is `p(r(c))`.)
+    /// (Texts differ on the names: with `l = o(n)` and `r = o(p)`, as here, the swing that turns
+    /// around `v(c)` is `p(r(c))`; texts that call `o(p(c))` `l(c)` write it `p(l(c))`.)
     #[inline]
     pub fn s(&self, c: u32) -> Option<u32> {
         self.r(c).map(Self::p)
     }
 
     /// Whether the manifold edge opposite `c` is traversed in opposite directions by its two faces
-    /// (`v(n(c)) == v(p(o(c)))`, seed 000 section 10). Border and non-manifold edges are not
+    /// (`v(n(c)) == v(p(o(c)))`: the two faces agree which side is out). Border and non-manifold edges are not
     /// manifold edges and give `true`.
     #[inline]
     pub fn is_consistent(&self, c: u32) -> bool {

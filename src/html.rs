@@ -24,6 +24,7 @@ use std::path::Path;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::atomic::AtomicFile;
+pub use crate::baseline::Change;
 use crate::report::Outcome;
 use crate::report::{Row, COLUMNS};
 use crate::rules::{Rule, Severity, Status};
@@ -66,19 +67,6 @@ pub struct Meta {
     pub seconds: f64,
     /// Files scanned.
     pub files: usize,
-}
-
-/// One mesh whose result changed since a baseline scan.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Change {
-    pub path: String,
-    pub mesh: String,
-    /// Status in the baseline (empty: the mesh is new).
-    pub before: String,
-    /// Status now (empty: the mesh is gone).
-    pub after: String,
-    /// What changed, in words (`+2 hole; -1 non-manifold-edge`).
-    pub what: String,
 }
 
 /// The comparison with a baseline scan: what got worse and what got better.

@@ -8,6 +8,8 @@ pub mod cache;
 pub mod config;
 pub mod copies;
 pub mod corner_table;
+#[doc = include_str!("definitions.md")]
+pub mod definitions {}
 pub mod formats;
 pub mod geometry;
 pub mod html;

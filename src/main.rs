@@ -1,5 +1,6 @@
 //! The `meshvet` process: parses the command line, resolves the config, drives the scan with a
-//! progress bar, writes the CSV, prints the summary and decides the exit code (SPEC 11, 12).
+//! progress bar, writes the CSV, prints the summary and decides the exit code
+//! ([definitions](meshvet::definitions#exit-codes)).
 //! Everything else lives in the library, which never prints.
 
 mod cli;
@@ -14,7 +15,7 @@ use clap::{CommandFactory, FromArgMatches};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use cli::{Cli, Command, Format};
-use meshvet::baseline::{self, Baseline};
+use meshvet::baseline::Baseline;
 use meshvet::cache::Cache;
 use meshvet::config;
 use meshvet::html::{self, HtmlReport};
@@ -24,7 +25,7 @@ use meshvet::scan;
 use meshvet::shard;
 use meshvet::walk::{self, Source};
 
-/// The command was wrong (bad flag, config or path): SPEC 12.
+/// The command was wrong (bad flag, config or path).
 const USAGE: u8 = 2;
 
 fn main() -> ExitCode {
@@ -269,21 +270,10 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     reports.finish(started.elapsed())?;
     if let (Some(page), Some(path)) = (&mut html, &args.html) {
         if let (Some(b), Some(name)) = (&baseline, &args.baseline) {
-            let changes = |list: &[baseline::Change]| -> Vec<html::Change> {
-                list.iter()
-                    .map(|c| html::Change {
-                        path: c.path.clone(),
-                        mesh: c.mesh.clone(),
-                        before: c.before.clone(),
-                        after: c.after.clone(),
-                        what: c.what.clone(),
-                    })
-                    .collect()
-            };
             page.set_baseline(html::Baseline {
                 name: name.display().to_string(),
-                worse: changes(&b.worse),
-                better: changes(&b.better),
+                worse: b.worse.clone(),
+                better: b.better.clone(),
             });
         }
         let meta = html::Meta {

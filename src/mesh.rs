@@ -2,7 +2,7 @@
 //! reader noticed on the way. Attributes needed by repair (UVs, normals, materials) arrive with the
 //! repair work; the topology only ever needs positions and triangles.
 
-/// One mesh as SPEC section 2 defines it (a whole OBJ/STL/PLY/OFF file, or one glTF `mesh`).
+/// One [mesh](crate::definitions#meshes): a whole OBJ/STL/PLY/OFF file, or one glTF `mesh`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Mesh {
     /// The glTF mesh name (or `#INDEX`); `None` for single-mesh formats.

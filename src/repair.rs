@@ -1,4 +1,4 @@
-//! Repair (SPEC 10): changes a mesh's triangles so the defects that can be fixed are gone, and says
+//! Repair ([definitions](crate::definitions#repairs)): changes a mesh's triangles so the defects that can be fixed are gone, and says
 //! exactly where every corner of the result comes from, so a format writer can keep the asset's UVs,
 //! normals, colours, materials and groups. Writes nothing.
 //!
@@ -16,8 +16,8 @@
 //!    new faces wound like their neighbours, their corners carrying the attributes of the border
 //!    corners;
 //! 5. flip closed shells whose volume sign is wrong for their nesting depth (after the fills, so a
-//!    shell a fill closed is judged too; SPEC 10 lists this before the fills, and the `repairs`
-//!    column keeps SPEC's order);
+//!    shell a fill closed is judged too; the `repairs` column still lists it before the fills, in the
+//!    documented order);
 //! 6. drop unreferenced vertices (the writer renumbers; [`Plan::used_vertices`] says which stay).
 
 use std::rc::Rc;
@@ -139,7 +139,7 @@ pub struct Plan {
     /// Whether each vertex (input, then new) is kept in the output. All `true` unless unreferenced
     /// vertices are dropped.
     pub used_vertices: Vec<bool>,
-    /// Repairs done, with counts (zero counts left out), in SPEC order.
+    /// Repairs done, with counts (zero counts left out), in the documented order ([`Kind`]).
     pub done: Vec<(Kind, usize, Option<String>)>,
     /// Defects left in place, in words (non-orientable components, holes over the limit).
     pub not_repairable: Vec<String>,
@@ -309,7 +309,7 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
         .count();
     done.push((Kind::DropUnreferencedVertices, unused, None));
 
-    // SPEC order, repairs that did nothing left out.
+    // The documented order, repairs that did nothing left out.
     done.retain(|(_, n, _)| *n > 0);
     done.sort_by_key(|(kind, ..)| *kind);
     Plan {

@@ -1,11 +1,12 @@
-//! The CSV report (SPEC 9): one flat [`Row`] per mesh whose field order is the column order, and a
-//! writer that puts the file in place atomically (a temporary file in the same folder, renamed when
-//! complete) or streams to standard output.
+//! The CSV report ([definitions](crate::definitions#report)): one flat [`Row`] per mesh whose field
+//! order is the column order, and a writer that puts the file in place atomically (a temporary file
+//! in the same folder, renamed when complete) or streams to standard output.
 //!
 //! Cells: booleans `true`/`false`; a number that is undefined (genus of a non-manifold mesh, every
-//! count of a file that could not be read) is an empty cell; floats print as Rust's shortest
-//! round-trip form (`0.5`, `1`, `1e-7`). After SPEC's columns come `invalid_faces`,
-//! `mirrored_instances` and `findings` (`rule:count;rule:count`, worst first, `off` rules left out).
+//! count of a file that could not be read) is an empty cell; floats print in Rust's `Display` form,
+//! the shortest digits that read back exactly, never an exponent (`0.5`, `1`, `0.0000001`). After
+//! the topology columns come `invalid_faces`, `mirrored_instances` and `findings`
+//! (`rule:count;rule:count`, worst first, `off` rules left out).
 //! `millis` is the time to read the file plus the time to analyse this mesh, to the microsecond; it is
 //! the only cell that differs between two scans of the same tree.
 
@@ -209,7 +210,7 @@ impl Cell for Option<Status> {
     }
 }
 
-/// One closed shell of a mesh (SPEC 7, 8), for the JSON report and the cache; the CSV only counts
+/// One closed [shell](crate::definitions#components) of a mesh, for the JSON report and the cache; the CSV only counts
 /// shells.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ShellRow {

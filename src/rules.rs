@@ -1,5 +1,6 @@
 //! Judgement after the facts: the rule table that turns an [`Analysis`] (and the few facts a reader
-//! records on a [`Mesh`]) into findings with severities, and the `status` of a report row (SPEC 9).
+//! records on a [`Mesh`]) into findings with severities, and the `status` of a report row
+//! ([definitions](crate::definitions#report)).
 //!
 //! A rule is an enum variant. Everything said about it (name, summary, why it matters, how it is
 //! repaired, default severity, the finding in words) is its [`Doc`], one `match` arm each; what
@@ -350,7 +351,7 @@ pub fn check(analysis: &Analysis, mesh: &MeshFacts, severities: &Severities) -> 
     findings
 }
 
-/// The verdict of one report row (SPEC 9).
+/// The verdict of one report row ([definitions](crate::definitions#report)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Status {
     Pass,

@@ -1,4 +1,4 @@
-//! Positions -> welded vertices (SPEC 3). Topology is about positions: input vertices at the same
+//! Positions -> welded vertices ([definitions](crate::definitions#welding)). Topology is about positions: input vertices at the same
 //! position are one vertex. Exact equality by default (with `-0.0 == 0.0`), or within a tolerance
 //! through a spatial hash. Vertices with a NaN or infinite coordinate map to [`INVALID`].
 
@@ -32,6 +32,27 @@ fn is_valid(p: &[f64; 3]) -> bool {
     p.iter().all(|x| x.is_finite())
 }
 
+/// The weld's frame: invalid positions map to [`INVALID`]; `id` gives each valid one its welded
+/// id, pushing a new welded position when none is close enough.
+fn weld_each(
+    positions: &[[f64; 3]],
+    mut id: impl FnMut(&[f64; 3], &mut Vec<[f64; 3]>) -> u32,
+) -> Welded {
+    let mut out = Welded {
+        map: Vec::with_capacity(positions.len()),
+        ..Welded::default()
+    };
+    for p in positions {
+        if is_valid(p) {
+            out.map.push(id(p, &mut out.positions));
+        } else {
+            out.invalid += 1;
+            out.map.push(INVALID);
+        }
+    }
+    out
+}
+
 /// Exact welding through an open-addressing table of welded ids (4 bytes a slot, load at most 1/2):
 /// a probe compares against the welded position itself, so the table stays small and a run of
 /// coherent input hits memory it has just touched.
@@ -42,36 +63,25 @@ fn weld_exact(positions: &[[f64; 3]]) -> Welded {
         .trailing_zeros();
     let mask = (1usize << bits) - 1;
     let mut slots = vec![INVALID; mask + 1];
-    let mut out = Welded {
-        map: Vec::with_capacity(positions.len()),
-        ..Welded::default()
-    };
-    for p in positions {
-        if !is_valid(p) {
-            out.invalid += 1;
-            out.map.push(INVALID);
-            continue;
-        }
+    weld_each(positions, |p, welded| {
         // Adding 0.0 turns -0.0 into 0.0, so both have one bit pattern.
         let q = p.map(|x| x + 0.0);
         let key = q.map(f64::to_bits);
         let mut h = hash(key) >> (64 - bits);
-        let id = loop {
+        loop {
             let id = slots[h as usize];
             if id == INVALID {
-                let id = out.positions.len() as u32;
+                let id = welded.len() as u32;
                 slots[h as usize] = id;
-                out.positions.push(q);
-                break id;
+                welded.push(q);
+                return id;
             }
-            if out.positions[id as usize].map(f64::to_bits) == key {
-                break id;
+            if welded[id as usize].map(f64::to_bits) == key {
+                return id;
             }
             h = (h + 1) & mask as u64;
-        };
-        out.map.push(id);
-    }
-    out
+        }
+    })
 }
 
 /// Mixes the three coordinates' bits; the top bits of the result index the table.
@@ -85,16 +95,7 @@ fn hash(key: [u64; 3]) -> u64 {
 fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
     let grid_cell = Cell::new(positions, tolerance);
     let mut grid: FxHashMap<[i64; 3], Vec<u32>> = FxHashMap::default();
-    let mut out = Welded {
-        map: Vec::with_capacity(positions.len()),
-        ..Welded::default()
-    };
-    for p in positions {
-        if !is_valid(p) {
-            out.invalid += 1;
-            out.map.push(INVALID);
-            continue;
-        }
+    weld_each(positions, |p, welded| {
         let k = grid_cell.of(p);
         let mut found = INVALID;
         for dx in -1..=1i64 {
@@ -102,7 +103,7 @@ fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
                 for dz in -1..=1i64 {
                     let key = [k[0] + dx, k[1] + dy, k[2] + dz];
                     for &id in grid.get(&key).map(Vec::as_slice).unwrap_or(&[]) {
-                        let q = &out.positions[id as usize];
+                        let q = &welded[id as usize];
                         if id < found && closer_than(p, q, tolerance) {
                             found = id;
                         }
@@ -111,14 +112,13 @@ fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
             }
         }
         if found == INVALID {
-            found = out.positions.len() as u32;
+            found = welded.len() as u32;
             // Adding 0.0 turns -0.0 into 0.0, as the exact weld does.
-            out.positions.push(p.map(|x| x + 0.0));
+            welded.push(p.map(|x| x + 0.0));
             grid.entry(k).or_default().push(found);
         }
-        out.map.push(found);
-    }
-    out
+        found
+    })
 }
 
 /// Whether `p` and `q` are closer than `tolerance`, measured in units of the tolerance so that neither

@@ -8,7 +8,7 @@
 //! `jobs` or the include/exclude globs, which only choose files), the file's report path, and the
 //! bytes of the file and of everything its rows depend on: for `.obj`, every `mtllib` it names; for
 //! `.gltf` and `.glb`, every external `buffers[].uri` and `images[].uri`. Dependencies are found by
-//! the readers' own rule ([`crate::formats::contain`]): one that is missing, or that the reader
+//! the readers' own rule (`formats::contain`): one that is missing, or that the reader
 //! would refuse (absolute, a URI scheme, outside the scanned tree before or after symbolic links,
 //! not a regular file), is hashed as `unavailable` and never looked at, so nothing outside the tree
 //! is read, and it becoming available later changes the key.
@@ -38,7 +38,7 @@
 //! **Sharing and compaction.** Several runs may use one folder at once (shards): each holds a
 //! shared lock on `DIR/lock` while open, and never changes a pack it did not write. A run that
 //! finishes ([`Cache::finish`]) lets go of its lock and takes the exclusive one only if no other
-//! run holds the folder; then, when the folder has more than [`MAX_PACKS`] packs, damaged bytes or
+//! run holds the folder; then, when the folder has more than 8 packs (`MAX_PACKS`), damaged bytes or
 //! more superseded records than live ones, it copies the live records that verify into one new
 //! pack (written under a temporary name, synced, renamed) and only then removes the old packs. So
 //! no pack is removed while another run reads or writes it, and a crash at any point leaves packs

@@ -1,7 +1,7 @@
 //! Format readers. One module per format; each turns bytes into [`Mesh`]es or a [`ReadError`] whose
 //! message says what is wrong and what to do. No reader panics on bad input, none sizes an allocation
 //! from an unchecked header count, only regular files are read (a FIFO or device would block), and
-//! no file a model names is read outside the scanned tree ([`contain`]).
+//! no file a model names is read outside the scanned tree (`contain`).
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -17,7 +17,7 @@ mod stl;
 pub mod write;
 
 /// The file formats meshvet reads. Everything else meshvet knows of a format is its line of
-/// [`FORMATS`].
+/// `FORMATS`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Format {
     Obj,
@@ -216,7 +216,7 @@ pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, 
 
 /// What a reader kept of a file for the writer of its repaired copy, so that the copy is written
 /// without reading and parsing the file a second time ([`read_retaining`]). Each format keeps a
-/// type of its own, which only its writer takes back out ([`Retained::take`]).
+/// type of its own, which only its writer takes back out (`Retained::take`).
 #[derive(Debug)]
 pub struct Retained(Box<dyn std::any::Any + Send>);
 

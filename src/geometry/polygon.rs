@@ -1,5 +1,5 @@
-//! Polygon -> triangles, shared by the OBJ, STL, PLY and OFF readers (SPEC 4: a fan for convex
-//! polygons, ear clipping for concave ones).
+//! Polygon -> triangles, shared by the OBJ, STL, PLY and OFF readers and the hole fill
+//! ([definitions](crate::definitions#faces): a fan for convex polygons, ear clipping for concave ones).
 //!
 //! The polygon is projected onto the coordinate plane most parallel to its best-fit plane (the one
 //! whose axis is the largest component of the Newell normal). Dropping a coordinate is exact, so the

@@ -23,7 +23,7 @@ use crate::mesh::Mesh;
 
 const UNSET: u32 = u32::MAX;
 
-/// Computes every topological fact of SPEC sections 3-8 for one mesh.
+/// Computes every topological fact of [the definitions](crate::definitions) for one mesh.
 pub fn analyse(mesh: &Mesh, options: &Options) -> Analysis {
     analyse_keeping(mesh, options).0
 }
@@ -470,7 +470,7 @@ fn shells(
     if shells.is_empty() {
         return shells;
     }
-    // Bounding box and P, the mean of the shell's vertices (SPEC 8): a shell is manifold, so each of
+    // Bounding box and P, the mean of the shell's vertices: a shell is manifold, so each of
     // its vertices has exactly one fan in it.
     let mut mean = vec![[0.0f64; 3]; shells.len()];
     for &(v, comp) in fans {

@@ -1,4 +1,5 @@
-//! Pure functions from a mesh to the numbers SPEC sections 3-8 define. One pass, [`analyse`], computes
+//! Pure functions from a mesh to the numbers of [the definitions](crate::definitions) (welding,
+//! faces, edges and vertices, components, volume and nesting). One pass, [`analyse`], computes
 //! an [`Analysis`] with every count the report needs plus per-component and per-shell tables; the
 //! rules decide later what those facts mean for a user.
 
@@ -11,7 +12,7 @@ pub use analyse::{analyse, analyse_keeping};
 pub use built::{build, Built, LeftOut};
 pub use places::{places, Places, NO_SHELL};
 
-/// How the analysis welds vertices (SPEC 3).
+/// How the analysis [welds](crate::definitions#welding) vertices.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Options {
     /// `0.0`: weld only exactly equal positions (-0.0 equals 0.0). Otherwise positions closer than this
@@ -19,7 +20,7 @@ pub struct Options {
     pub weld_tolerance: f64,
 }
 
-/// Every topological fact about one mesh (SPEC 9 columns without the file columns).
+/// Every topological fact about one mesh (the report's columns without the file columns).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Analysis {
     /// Input vertices as the file stores them.
@@ -59,7 +60,8 @@ pub struct Analysis {
     pub shells: Vec<Shell>,
 }
 
-/// A maximal set of faces connected through shared edges of any valence (SPEC 7).
+/// A maximal set of faces connected through shared edges of any valence
+/// ([definitions](crate::definitions#components)).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Component {
     pub faces: usize,
@@ -83,7 +85,8 @@ pub struct Component {
     pub genus: Option<i64>,
 }
 
-/// Whether a shell bounds material from outside or a void inside material (SPEC 8).
+/// Whether a shell bounds material from outside or a void inside material
+/// ([definitions](crate::definitions#volume-and-nesting)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Role {
     #[default]
@@ -91,7 +94,8 @@ pub enum Role {
     Cavity,
 }
 
-/// A closed, manifold component (SPEC 7) with its place in the nesting (SPEC 8).
+/// A closed, manifold component with its place in the nesting
+/// ([definitions](crate::definitions#volume-and-nesting)).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Shell {
     /// Index into [`Analysis::components`].
@@ -101,7 +105,7 @@ pub struct Shell {
     pub genus: Option<i64>,
     pub orientable: bool,
     pub oriented: bool,
-    /// Signed volume, `(1/6) sum mp(A-P, B-P, C-P)` with P the mean of the shell's vertices (SPEC 8),
+    /// Signed volume, `(1/6) sum mp(A-P, B-P, C-P)` with P the mean of the shell's vertices,
     /// with the faces taken in a consistent winding: the stored one when the shell is oriented, else
     /// the winding of the majority of its faces, and on a tie the winding of its first face by
     /// position (vertex positions sorted by x, y, z, compared lexicographically), so that no vertex

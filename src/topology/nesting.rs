@@ -1,4 +1,4 @@
-//! Shell nesting (SPEC 8): shell A lies inside shell B when a vertex of A is inside the solid bounded
+//! Shell nesting ([definitions](crate::definitions#volume-and-nesting)): shell A lies inside shell B when a vertex of A is inside the solid bounded
 //! by B. The depth of a shell is the number of shells containing it.
 //!
 //! Candidates are pruned first: A can only lie inside B when A's bounding box lies inside B's, found

@@ -1,8 +1,10 @@
 //! glTF 2.0 / GLB reader: one [`Mesh`] per glTF `mesh`, all its triangle primitives together, in
-//! the mesh's local space, counted once however many nodes instance it (SPEC section 2).
+//! the mesh's local space, counted once however many nodes instance it
+//! ([definitions](crate::definitions#meshes)).
 //!
 //! The gltf crate panics on several malformed inputs, all in its validation pass and its `Reader`
-//! (CRATES.md 5.1-5.3). So this reader uses only the crate's JSON types: it deserializes the
+//! (the POSITION index check of its validation, float indices in its `Reader`, a byte stride shorter
+//! than an element, a `%FF` in a URI: all seen in release builds). So this reader uses only the crate's JSON types: it deserializes the
 //! members geometry needs itself (`container::Model`, after turning away glTF 1.0 and extensions
 //! it cannot decode), never builds a `gltf::Document`, resolves buffers itself (`buffers`), and
 //! reads accessors from bytes it has checked (`accessor`). Every index, type, stride and byte range is checked before use; a panic that

@@ -286,6 +286,23 @@ struct NewData {
 }
 
 impl NewData {
+    /// Adds the values of vertex attribute `name` (`count` elements laid out as `v` says) as a view
+    /// and accessor, with bounds where glTF requires them (POSITION) or the source had them;
+    /// returns the accessor index.
+    fn attribute(&mut self, name: &str, bytes: &[u8], v: &ValuesInfo, count: usize) -> usize {
+        let b = (name == "POSITION" || v.has_bounds).then(|| bounds(bytes, v.size, v.component));
+        self.accessor(
+            bytes,
+            v.size,
+            count,
+            component_code(v.component),
+            type_name(v.type_),
+            v.normalized,
+            true,
+            b,
+        )
+    }
+
     /// Adds `data` (elements of `size` bytes, `count` of them) as a view and accessor; returns the
     /// accessor index. Vertex attributes (`vertex`) get 4-byte aligned elements.
     #[allow(clippy::too_many_arguments)]
@@ -622,18 +639,7 @@ fn rewrite_mesh(
                     bytes[16 * i + 12..16 * i + 16].copy_from_slice(&(-w as f32).to_le_bytes());
                 }
             }
-            let with_bounds = name == "POSITION" || v.has_bounds;
-            let b = with_bounds.then(|| bounds(&bytes, v.size, v.component));
-            let index = writer.accessor(
-                &bytes,
-                v.size,
-                order.len(),
-                component_code(v.component),
-                type_name(v.type_),
-                v.normalized,
-                true,
-                b,
-            );
+            let index = writer.attribute(name, &bytes, &v, order.len());
             attributes.insert(name.clone(), json!(index));
         }
 
@@ -673,18 +679,7 @@ fn rewrite_mesh(
                             }
                         }
                     }
-                    let b = (name == "POSITION" || v.has_bounds)
-                        .then(|| bounds(&bytes, v.size, v.component));
-                    let index = writer.accessor(
-                        &bytes,
-                        v.size,
-                        order.len(),
-                        component_code(v.component),
-                        type_name(v.type_),
-                        v.normalized,
-                        true,
-                        b,
-                    );
+                    let index = writer.attribute(name, &bytes, &v, order.len());
                     out.insert(name.clone(), json!(index));
                 }
                 targets.push(Value::Object(out));

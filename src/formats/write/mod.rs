@@ -1,4 +1,4 @@
-//! Writers of repaired copies (SPEC 10): each applies a [`Plan`] to the source file and writes the
+//! Writers of repaired copies ([definitions](crate::definitions#repairs)): each applies a [`Plan`] to the source file and writes the
 //! result in the source's format, keeping every attribute the file carries.
 //!
 //! A writer re-reads the source with its reader's "full" read (the readers are deterministic, so
