@@ -75,6 +75,12 @@ pub struct Scan {
     #[arg(long, value_name = "FILE")]
     pub html: Option<PathBuf>,
 
+    /// The tree that files a model names (glTF buffers and images, OBJ material libraries) must
+    /// stay inside. Default: each folder PATH itself; for a file PATH, the current folder when the
+    /// file is inside it, else the file's own folder. Every PATH must lie inside DIR.
+    #[arg(long, value_name = "DIR")]
+    pub root: Option<PathBuf>,
+
     /// Use this config instead of the nearest meshvet.toml upward from the current folder.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,

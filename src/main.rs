@@ -185,7 +185,25 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
             }
         }
     }
-    let mut sources = walk::walk(&args.paths, &filter);
+    if let Some(root) = &args.root {
+        let real = root
+            .canonicalize()
+            .ok()
+            .filter(|r| r.is_dir())
+            .ok_or_else(|| format!("--root {}: no such folder - check the path", root.display()))?;
+        if let Some(outside) = args
+            .paths
+            .iter()
+            .find(|p| !p.canonicalize().is_ok_and(|p| p.starts_with(&real)))
+        {
+            return Err(format!(
+                "{} is not inside --root {}: name a root that holds every scanned path",
+                outside.display(),
+                root.display()
+            ));
+        }
+    }
+    let mut sources = walk::walk_within(&args.paths, &filter, args.root.as_deref());
     if let Some(dir) = &args.repair_dir {
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create the repair folder {}: {e}", dir.display()))?;

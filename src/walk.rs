@@ -5,8 +5,8 @@
 //! so does a named path that is not a regular file (a FIFO or device: reading it would block). In
 //! folders only regular files are listed.
 //!
-//! Report paths: with one PATH, a file's path is relative to that PATH (a folder, or the folder of a
-//! file) with `/` separators. With several PATHs each file's path is the PATH as written (without a
+//! Report paths: with one folder PATH, a file's path is relative to it, with `/` separators; a file
+//! named on the command line is reported as written (without a leading `./`). With several PATHs each file's path is the PATH as written (without a
 //! leading `./`) joined with that relative path, so rows from different PATHs stay distinct; the list
 //! is sorted by report path and a file reached twice is listed once. Names that are not UTF-8 are kept
 //! and reported lossily (U+FFFD for the bad bytes).
@@ -33,8 +33,10 @@ pub struct Source {
     pub path: PathBuf,
     /// The path in the report (see the module docs).
     pub display: String,
-    /// The tree glTF buffers must stay inside: the folder given, or the folder of a file given.
-    /// Shared by every file of a walked folder (a million-file tree holds one copy).
+    /// The tree every file a model names (glTF buffers and images, OBJ material libraries) must
+    /// stay inside: `--root`, else the folder given, or for a file given alone the current folder
+    /// (when the file is inside it) or its own folder. Shared by every file of a walked folder (a
+    /// million-file tree holds one copy).
     pub root: Arc<Path>,
     /// `None`: not a mesh extension (only for files named explicitly).
     pub format: Option<Format>,
@@ -93,7 +95,18 @@ impl Filter {
 /// The sorted, de-duplicated files under `paths` that the filter admits. Paths that do not exist give
 /// an error entry (callers that want to refuse them should check first).
 pub fn walk(paths: &[PathBuf], filter: &Filter) -> Vec<Source> {
+    walk_within(paths, filter, None)
+}
+
+/// [`walk`], with `root` as the tree every file a model names must stay inside (`--root`). Without
+/// one, a walked folder is its own tree, and a file named alone has the current folder as its tree
+/// when it lies inside it (the tree a user works in: `props/barrel.gltf` may use
+/// `buffers/barrel.bin`), else its own folder.
+pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> Vec<Source> {
     let prefixed = paths.len() > 1;
+    let given_root: Option<Arc<Path>> = root.map(Into::into);
+    let current: Arc<Path> = Path::new(".").into();
+    let current_real = Path::new(".").canonicalize().ok();
     let mut sources = Vec::new();
     for given in paths {
         let prefix = if prefixed {
@@ -102,23 +115,30 @@ pub fn walk(paths: &[PathBuf], filter: &Filter) -> Vec<Source> {
             PathBuf::new()
         };
         if given.is_dir() {
-            walk_folder(given, &prefix, filter, &mut sources);
+            let tree = given_root.clone().unwrap_or_else(|| given.as_path().into());
+            walk_folder(given, &prefix, filter, &tree, &mut sources);
         } else {
             let name = given
                 .file_name()
                 .map(PathBuf::from)
                 .unwrap_or_else(|| given.clone());
-            let display = if prefixed {
-                prefix.clone()
-            } else {
-                name.clone()
-            };
-            if !filter.admits(&[&name, &normalise(given)]) {
+            // The path as written (less `./`), so `a/part.obj` and `b/part.obj` stay apart.
+            let display = normalise(given);
+            if !filter.admits(&[&name, &display]) {
                 continue;
             }
-            let root: Arc<Path> = match given.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p.into(),
-                _ => Path::new(".").into(),
+            let folder = match given.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            let inside_current = match (&current_real, folder.canonicalize()) {
+                (Some(cwd), Ok(real)) => real.starts_with(cwd),
+                _ => false,
+            };
+            let root = match &given_root {
+                Some(r) => r.clone(),
+                None if inside_current => current.clone(),
+                None => folder.into(),
             };
             // Only regular files are read: a FIFO or a device named here would block the scan.
             let error = match std::fs::metadata(given) {
@@ -141,8 +161,14 @@ pub fn walk(paths: &[PathBuf], filter: &Filter) -> Vec<Source> {
     sources
 }
 
-fn walk_folder(root: &Path, prefix: &Path, filter: &Filter, sources: &mut Vec<Source>) {
-    let shared_root: Arc<Path> = root.into();
+fn walk_folder(
+    root: &Path,
+    prefix: &Path,
+    filter: &Filter,
+    tree: &Arc<Path>,
+    sources: &mut Vec<Source>,
+) {
+    let shared_root = tree.clone();
     let relative = |p: &Path| p.strip_prefix(root).unwrap_or(p).to_owned();
     let walker = walkdir::WalkDir::new(root)
         .follow_links(false)

@@ -242,14 +242,129 @@ fn rows_are_sorted_with_relative_slash_paths() {
         .collect();
     assert_eq!(paths, ["a.obj", "a/b/c.OBJ", "a/z.obj", "b.obj"]);
 
-    // Scanning the folder by an absolute path changes nothing; a named file is relative to its folder.
+    // Scanning the folder by an absolute path changes nothing; a named file is reported as written.
     let abs = meshvet(
         Path::new("/"),
         &["scan", "--csv", "-", tree.path().to_str().unwrap()],
     );
     assert_eq!(without_millis(&abs.stdout), without_millis(&run.stdout));
     let one = meshvet(tree.path(), &["scan", "--csv", "-", "a/b/c.OBJ"]);
-    assert_eq!(rows(&one.stdout)[0][0], "c.OBJ");
+    assert_eq!(rows(&one.stdout)[0][0], "a/b/c.OBJ");
+    let dotted = meshvet(tree.path(), &["scan", "--csv", "-", "./a/b/c.OBJ"]);
+    assert_eq!(rows(&dotted.stdout)[0][0], "a/b/c.OBJ");
+}
+
+/// Two files of one name in two folders, each named alone as a pre-commit hook names them: each
+/// line says which one it is.
+#[test]
+fn a_named_file_is_printed_as_written() {
+    let tree = Tree::new(&[("a/part.obj", INSIDE_OUT), ("b/part.obj", TRIANGLE)]);
+    let a = meshvet(tree.path(), &["scan", "--format", "lines", "a/part.obj"]);
+    assert!(
+        a.stdout.starts_with("a/part.obj: error inside-out-shell"),
+        "{}",
+        a.stdout
+    );
+    let b = meshvet(tree.path(), &["scan", "--format", "lines", "b/part.obj"]);
+    assert!(
+        b.stdout.starts_with("b/part.obj: warning hole"),
+        "{}",
+        b.stdout
+    );
+    let summary = meshvet(tree.path(), &["scan", "a/part.obj"]);
+    assert!(
+        summary.stdout.contains("\na/part.obj: error"),
+        "{}",
+        summary.stdout
+    );
+}
+
+/// The bundled barrel's buffer sits in a sibling folder (`props/barrel.gltf` ->
+/// `../buffers/barrel.bin`), as in the asset repositories a pre-commit hook runs in: named from the
+/// top of the tree (where the hook runs) it passes. Named from inside `props/`, the current folder
+/// is the tree and the buffer is outside it: refused, and the message names the tree and the way
+/// out (`--root`), which then lets it pass. A root that does not hold the file is a usage error.
+#[test]
+fn a_named_gltf_may_use_buffers_in_the_tree_it_is_named_from() {
+    let tree = Tree::new(&[]);
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
+    for f in ["props/barrel.gltf", "buffers/barrel.bin"] {
+        tree.write(f, &std::fs::read(assets.join(f)).unwrap());
+    }
+    let hook = meshvet(
+        tree.path(),
+        &["scan", "--format", "lines", "props/barrel.gltf"],
+    );
+    assert_eq!(
+        (hook.code, hook.stdout.as_str()),
+        (0, ""),
+        "{}",
+        hook.stderr
+    );
+
+    let props = tree.path().join("props");
+    let inside = meshvet(&props, &["scan", "--format", "lines", "barrel.gltf"]);
+    assert_eq!(inside.code, 1);
+    assert!(
+        inside.stdout.contains("refused")
+            && inside.stdout.contains("the current folder")
+            && inside.stdout.contains("--root"),
+        "{}",
+        inside.stdout
+    );
+    let rooted = meshvet(
+        &props,
+        &["scan", "--format", "lines", "--root", "..", "barrel.gltf"],
+    );
+    assert_eq!(
+        (rooted.code, rooted.stdout.as_str()),
+        (0, ""),
+        "{}",
+        rooted.stderr
+    );
+    let narrow = meshvet(
+        tree.path(),
+        &["scan", "--root", "buffers", "props/barrel.gltf"],
+    );
+    assert_eq!(narrow.code, 2);
+    assert!(
+        narrow.stderr.contains("not inside --root buffers"),
+        "{}",
+        narrow.stderr
+    );
+}
+
+/// A buffer reached through a symbolic link out of the tree stays refused for a named file too.
+#[cfg(unix)]
+#[test]
+fn a_named_gltf_cannot_reach_out_through_a_link() {
+    let outside = Tree::new(&[]);
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("sample_assets");
+    outside.write(
+        "barrel.bin",
+        &std::fs::read(assets.join("buffers/barrel.bin")).unwrap(),
+    );
+    let tree = Tree::new(&[]);
+    tree.write(
+        "props/barrel.gltf",
+        &std::fs::read(assets.join("props/barrel.gltf")).unwrap(),
+    );
+    std::fs::create_dir_all(tree.path().join("buffers")).unwrap();
+    std::os::unix::fs::symlink(
+        outside.path().join("barrel.bin"),
+        tree.path().join("buffers/barrel.bin"),
+    )
+    .unwrap();
+    let run = meshvet(
+        tree.path(),
+        &["scan", "--format", "lines", "props/barrel.gltf"],
+    );
+    assert_eq!(run.code, 1);
+    assert!(
+        run.stdout.contains("through a symbolic link"),
+        "{}",
+        run.stdout
+    );
 }
 
 #[test]

@@ -19,6 +19,8 @@ pub struct Location {
     pub folder: PathBuf,
     /// The canonical scanned tree: every file a model names must resolve inside it.
     pub tree: PathBuf,
+    /// The tree as it was given (for messages: `.` is the current folder).
+    pub given: PathBuf,
 }
 
 impl Location {
@@ -35,7 +37,22 @@ impl Location {
         if tree.is_file() {
             tree.pop();
         }
-        Ok(Location { folder, tree })
+        Ok(Location {
+            folder,
+            tree,
+            given: root.to_path_buf(),
+        })
+    }
+
+    /// The tree in words, for a refusal: `the current folder`, or `the folder `assets``, and how
+    /// to widen it.
+    pub fn tree_name(&self) -> String {
+        let tree = if self.given == Path::new(".") || self.given.as_os_str().is_empty() {
+            "the current folder".to_owned()
+        } else {
+            format!("the folder `{}`", self.given.display())
+        };
+        format!("{tree} (a wider one can be given with --root DIR)")
     }
 }
 
@@ -51,7 +68,7 @@ impl Refusal {
     pub fn describe(self) -> &'static str {
         match self {
             Refusal::Absolute => "it is an absolute path",
-            Refusal::ClimbsOut => "it climbs out of the scanned folder",
+            Refusal::ClimbsOut => "it climbs out of the scanned tree",
             Refusal::Nul => "it contains a NUL byte",
         }
     }
@@ -127,6 +144,7 @@ mod tests {
         let location = Location {
             folder: PathBuf::from("/tree/models"),
             tree: PathBuf::from("/tree"),
+            given: PathBuf::from("/tree"),
         };
         assert_eq!(
             join("../shared/a.bin", &location),

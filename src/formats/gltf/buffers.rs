@@ -152,7 +152,9 @@ fn percent_decode(uri: &str) -> Result<String, ReadError> {
 pub fn check(uri: &str, location: &Location) -> Result<PathBuf, ReadError> {
     let refuse = |why: &str| {
         ReadError::new(format!(
-            "buffer URI \"{uri}\" refused: {why}; meshvet reads only data: URIs and relative paths inside the scanned folder"
+            "buffer URI \"{uri}\" refused: {why}; meshvet reads only data: URIs and relative paths \
+             inside the scanned tree, here {}",
+            location.tree_name()
         ))
     };
     if let Some(scheme) = scheme(uri) {
@@ -173,7 +175,9 @@ pub fn resolve(uri: &str, location: &Location) -> Result<PathBuf, ReadError> {
         )),
         Unresolved::Io(e) => ReadError::new(format!("buffer URI \"{uri}\": {e}")),
         Unresolved::Outside => ReadError::new(format!(
-            "buffer URI \"{uri}\" refused: it resolves, through a symbolic link, outside the scanned folder"
+            "buffer URI \"{uri}\" refused: it resolves, through a symbolic link, outside the \
+             scanned tree, here {}",
+            location.tree_name()
         )),
         Unresolved::NotAFile(real) => ReadError::new(format!(
             "buffer URI \"{uri}\" names {}, which is not a regular file",
