@@ -143,8 +143,7 @@ models/open.obj: warning hole: a loop of border edges: the surface is open there
         (0, "", "")
     );
 
-    // An unreadable file is one error line. (One file named alone is reported by its name, as
-    // `scan` reports any single PATH relative to itself.)
+    // An unreadable file is one error line, under its path as named.
     write(
         dir.path(),
         "models/cut.stl",
@@ -155,7 +154,7 @@ models/open.obj: warning hole: a loop of border edges: the surface is open there
     let hook = run(env!("CARGO_BIN_EXE_meshvet"), dir.path(), &cut);
     assert_eq!(hook.code, 1);
     assert!(
-        hook.stdout.starts_with("cut.stl: error: "),
+        hook.stdout.starts_with("models/cut.stl: error: "),
         "{}",
         hook.stdout
     );
