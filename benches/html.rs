@@ -16,8 +16,8 @@ use std::time::{Instant, SystemTime};
 
 use meshvet::config::Settings;
 use meshvet::html::{HtmlReport, Meta};
-use meshvet::report::Outcome;
 use meshvet::report::Row;
+use meshvet::report::{Outcome, Target};
 use meshvet::rules::{Finding, Rule, Severity, Status};
 use meshvet::scan::{self, Extras};
 use meshvet::topology::analyse_keeping;
@@ -128,7 +128,8 @@ fn main() {
 
     let start = Instant::now();
     let out = dir.path().join("report.html");
-    page.write(&out, &meta(sources.len())).unwrap();
+    page.write(&Target::File(out.clone()), &meta(sources.len()))
+        .unwrap();
     let written = start.elapsed().as_secs_f64();
     let bytes = std::fs::metadata(&out).unwrap().len();
     println!(
@@ -182,7 +183,8 @@ fn main() {
     let added = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let out = dir.path().join("big.html");
-    big.write(&out, &meta(100_000)).unwrap();
+    big.write(&Target::File(out.clone()), &meta(100_000))
+        .unwrap();
     let written = start.elapsed().as_secs_f64();
     let bytes = std::fs::metadata(&out).unwrap().len();
     println!(

@@ -20,13 +20,11 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::{self, Write};
-use std::path::Path;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use crate::atomic::AtomicFile;
 pub use crate::baseline::Change;
 use crate::report::Outcome;
-use crate::report::{Row, COLUMNS};
+use crate::report::{Output, Row, Target, COLUMNS};
 use crate::rules::{Rule, Severity, Status};
 use crate::topology::{Role, Shell};
 
@@ -273,11 +271,12 @@ impl HtmlReport {
         page
     }
 
-    /// Renders the page and writes it atomically (a temporary file beside `path`, then a rename).
-    pub fn write(&self, path: &Path, meta: &Meta) -> io::Result<()> {
-        let mut file = AtomicFile::create(path)?;
-        file.write_all(self.render(meta).as_bytes())?;
-        file.commit()
+    /// Renders the page and writes it to standard output or, atomically, to a file (a temporary
+    /// file beside it, then a rename).
+    pub fn write(&self, target: &Target, meta: &Meta) -> io::Result<()> {
+        let mut out = Output::create(target)?;
+        out.write_all(self.render(meta).as_bytes())?;
+        out.finish()
     }
 
     fn write_header(&self, out: &mut String, meta: &Meta, summary: &Summary) {
@@ -841,7 +840,9 @@ mod tests {
     fn the_page_writes_atomically() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("r.html");
-        sample().write(&path, &meta()).unwrap();
+        sample()
+            .write(&Target::File(path.clone()), &meta())
+            .unwrap();
         assert!(std::fs::read_to_string(&path).unwrap().contains("meshvet"));
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }

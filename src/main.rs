@@ -231,7 +231,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         _ => None,
     };
     let mut reports = outputs::Reports::create(args)?;
-    let reports_on_stdout = reports.uses_stdout();
+    let reports_on_stdout = reports.uses_stdout(args);
     let lines_format = args.format == Format::Lines;
 
     let bar = if args.quiet || lines_format || !std::io::stderr().is_terminal() {
@@ -302,12 +302,9 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
             seconds: started.elapsed().as_secs_f64(),
             files: sources.len(),
         };
-        page.write(path, &meta).map_err(|e| {
-            format!(
-                "cannot write the HTML report {}: {e} - check that its folder exists and is writable",
-                path.display()
-            )
-        })?;
+        let target = cli::target(path);
+        page.write(&target, &meta)
+            .map_err(|e| outputs::cannot_write(&target, &e))?;
     }
 
     // The summary goes to standard output unless a report does.

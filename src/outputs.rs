@@ -21,22 +21,30 @@ pub struct Reports {
 }
 
 impl Reports {
-    /// Opens every report the flags ask for. At most one may go to standard output.
+    /// Opens every report the flags ask for. At most one report may go to standard output, and
+    /// none when `--format lines` prints its lines there.
     pub fn create(args: &Scan) -> Result<Reports, String> {
-        let targets = [&args.csv, &args.json, &args.junit].map(|p| p.as_deref().map(cli::target));
-        if targets
+        let flags = ["--csv", "--json", "--junit", "--html"];
+        let on_stdout: Vec<&str> = [&args.csv, &args.json, &args.junit, &args.html]
             .iter()
-            .flatten()
-            .filter(|t| **t == Target::Stdout)
-            .count()
-            > 1
-        {
-            return Err(
-                "only one of --csv, --json and --junit can write to standard output (`-`)"
-                    .to_owned(),
-            );
+            .zip(flags)
+            .filter(|(p, _)| p.as_deref().map(cli::target) == Some(Target::Stdout))
+            .map(|(_, flag)| flag)
+            .collect();
+        if on_stdout.len() > 1 {
+            return Err(format!(
+                "{} write to standard output (`-`): only one report can; send the others to files",
+                on_stdout.join(" and ")
+            ));
         }
-        let [csv, json, junit] = targets;
+        if let (Some(flag), cli::Format::Lines) = (on_stdout.first(), args.format) {
+            return Err(format!(
+                "--format lines prints its lines on standard output, so {flag} - cannot write there \
+                 too: give {flag} a file"
+            ));
+        }
+        let [csv, json, junit] =
+            [&args.csv, &args.json, &args.junit].map(|p| p.as_deref().map(cli::target));
         fn open<R>(
             target: Option<Target>,
             create: impl Fn(&Target) -> io::Result<R>,
@@ -57,11 +65,12 @@ impl Reports {
     }
 
     /// Whether a report goes to standard output (then the summary goes to standard error).
-    pub fn uses_stdout(&self) -> bool {
+    pub fn uses_stdout(&self, args: &Scan) -> bool {
         let csv = self.csv.as_ref().map(|(t, _)| t);
         let json = self.json.as_ref().map(|(t, _)| t);
         let junit = self.junit.as_ref().map(|(t, _)| t);
-        [csv, json, junit].contains(&Some(&Target::Stdout))
+        let html = args.html.as_deref().map(cli::target);
+        [csv, json, junit, html.as_ref()].contains(&Some(&Target::Stdout))
     }
 
     /// Adds one outcome to every report. The error names the report.

@@ -889,3 +889,47 @@ fn the_sample_assets_show_what_they_were_made_to_show() {
     ];
     assert_eq!(got, expected.map(|r| r.map(str::to_owned)));
 }
+
+/// `-` is standard output for every report flag, `--html` included (no file named `-`); two
+/// reports there at once, or a report there beside `--format lines`, would mix: refused (exit 2).
+#[test]
+fn a_dash_is_standard_output_for_every_report_and_only_one_may_use_it() {
+    let tree = Tree::new(&[("a.obj", TETRA)]);
+    let page = meshvet(tree.path(), &["scan", "--html", "-"]);
+    assert_eq!(page.code, 0, "{}", page.stderr);
+    assert!(
+        page.stdout.starts_with("<!DOCTYPE html>"),
+        "{}",
+        &page.stdout[..80]
+    );
+    assert!(page.stdout.trim_end().ends_with("</html>"));
+    assert!(
+        page.stderr.contains("1 mesh: 1 pass"),
+        "the summary moves to stderr"
+    );
+    assert!(!tree.path().join("-").exists());
+
+    let two = meshvet(tree.path(), &["scan", "--csv", "-", "--html", "-"]);
+    assert_eq!(two.code, 2);
+    assert!(
+        two.stderr
+            .contains("--csv and --html write to standard output"),
+        "{}",
+        two.stderr
+    );
+    assert_eq!(two.stdout, "");
+    let lines = meshvet(tree.path(), &["scan", "--format", "lines", "--json", "-"]);
+    assert_eq!(lines.code, 2);
+    assert!(
+        lines
+            .stderr
+            .contains("--format lines prints its lines on standard output"),
+        "{}",
+        lines.stderr
+    );
+    let to_file = meshvet(
+        tree.path(),
+        &["scan", "--format", "lines", "--json", "r.jsonl"],
+    );
+    assert_eq!(to_file.code, 0, "{}", to_file.stderr);
+}
