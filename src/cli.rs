@@ -85,7 +85,8 @@ pub struct Scan {
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
 
-    /// Worker threads (default: one per core).
+    /// Worker threads (default: one per core). Capped at 4 per core, and at the number of files
+    /// when that is more than the cores: more threads only wait for each other.
     #[arg(long, short = 'j', value_name = "N")]
     pub jobs: Option<usize>,
 

@@ -85,7 +85,7 @@ where
     E: From<std::io::Error>,
 {
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs)
+        .num_threads(pool_size(jobs, sources.len(), cores()))
         .thread_name(|i| format!("{THREAD_NAME}-{i}"))
         .build()
         .map_err(|e| std::io::Error::other(format!("cannot start the worker threads: {e}")))?;
@@ -119,6 +119,27 @@ where
     }
     Ok(())
 }
+
+/// The cores this process may use.
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
+}
+
+/// Threads for a scan of `files` files asked to use `jobs` (0: one per core): never more than
+/// [`MAX_THREADS_PER_CORE`] per core (more only wait for each other: 100,000 threads on three
+/// files ran for minutes), and never more than there are files, but for one thread per core,
+/// which a big mesh uses inside its own analysis.
+pub fn pool_size(jobs: usize, files: usize, cores: usize) -> usize {
+    let cores = cores.max(1);
+    let asked = if jobs == 0 { cores } else { jobs };
+    asked
+        .min(MAX_THREADS_PER_CORE * cores)
+        .min(files.max(cores))
+}
+
+/// The most threads per core [`pool_size`] gives (threads waiting on slow disks can help a
+/// little beyond one per core).
+pub const MAX_THREADS_PER_CORE: usize = 4;
 
 /// Reads and judges one file: its rows, sorted by mesh. Never panics (a panic inside is caught).
 pub fn scan_file(source: &Source, settings: &Settings) -> Vec<Outcome> {
@@ -308,6 +329,19 @@ mod tests {
         );
         assert_eq!(caught(|| panic!("static")), Err::<(), _>("static".into()));
         assert_eq!(caught(|| 7), Ok(7));
+    }
+
+    /// Asked for 100,000 threads on 3 files with 2 cores: 3 (the files); on 50 files: 8 (4 per
+    /// core); one file still gets a thread per core; 0 is one per core, capped the same way.
+    #[test]
+    fn the_pool_is_capped_at_what_can_help() {
+        assert_eq!(pool_size(100_000, 3, 2), 3);
+        assert_eq!(pool_size(100_000, 50, 2), 8);
+        assert_eq!(pool_size(100_000, 1, 2), 2);
+        assert_eq!(pool_size(0, 1000, 2), 2);
+        assert_eq!(pool_size(3, 1000, 2), 3);
+        assert_eq!(pool_size(1, 1000, 16), 1);
+        assert_eq!(pool_size(0, 0, 0), 1);
     }
 
     #[test]

@@ -933,3 +933,20 @@ fn a_dash_is_standard_output_for_every_report_and_only_one_may_use_it() {
     );
     assert_eq!(to_file.code, 0, "{}", to_file.stderr);
 }
+
+/// `--jobs 100000` on three files is capped (it ran for minutes at a load of ~700 before) and
+/// gives the rows one thread gives.
+#[test]
+fn a_huge_jobs_count_is_capped_and_changes_no_row() {
+    let tree = Tree::new(&[("a.obj", TETRA), ("b.obj", INSIDE_OUT), ("c.obj", TRIANGLE)]);
+    let one = meshvet(tree.path(), &["scan", "--csv", "-", "--jobs", "1"]);
+    let many = meshvet(tree.path(), &["scan", "--csv", "-", "--jobs", "100000"]);
+    assert_eq!(many.code, 1);
+    assert_eq!(without_millis(&many.stdout), without_millis(&one.stdout));
+    let help = meshvet(tree.path(), &["scan", "--help"]);
+    assert!(
+        help.stdout.contains("Capped at 4 per core"),
+        "{}",
+        help.stdout
+    );
+}
