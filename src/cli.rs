@@ -35,6 +35,19 @@ pub enum Command {
     /// The reports must have the same columns and must not report the same path. Exit code 0:
     /// merged; 2: a report is missing, malformed, mismatched or overlapping.
     Merge(Merge),
+
+    /// Show which config a scan here would use, or print the documented default config.
+    ///
+    /// `meshvet config --default > meshvet.toml` starts a config of your own: every key with its
+    /// default and what it does.
+    Config(ConfigArgs),
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ConfigArgs {
+    /// Print the default config, every key stated and explained.
+    #[arg(long)]
+    pub default: bool,
 }
 
 #[derive(Debug, clap::Args)]

@@ -18,6 +18,10 @@ use crate::formats::Limits;
 use crate::rules::{Rule, Severities, Severity};
 use crate::topology::Options;
 
+/// The documented default config: every key with its built-in default and what it does (a test
+/// holds it to [`Settings::default`]). `meshvet config --default` prints it.
+pub const DEFAULT_TOML: &str = include_str!("../configs/default.toml");
+
 /// The file name looked for upward from the current folder.
 pub const FILE_NAME: &str = "meshvet.toml";
 
@@ -202,7 +206,10 @@ impl Config {
                 .replace("unknown field", "unknown key");
             let message = match suggest_for_unknown_field(&message) {
                 Some(known) => format!("{message}; did you mean `{known}`?"),
-                None => message,
+                None => match e.span().and_then(|s| key_at(text, s.start)) {
+                    Some(key) => explain_value(&message, &key),
+                    None => message,
+                },
             };
             error(e.span(), message)
         })?;
@@ -275,12 +282,73 @@ fn position(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
+/// The key whose value starts at byte `offset` (`hole`, or `[rules] hole` inside a table), read
+/// from the text: the part of the line before its `=`.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let before = text.get(..offset)?;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let (key, _) = text[line_start..].split_once('=')?;
+    let key = key.trim().trim_matches('"');
+    if key.is_empty() || key.contains(['[', '#']) {
+        return None;
+    }
+    let table = before[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .map(|l| format!("{} ", l.split('#').next().unwrap_or(l).trim()));
+    Some(format!("{}{key}", table.unwrap_or_default()))
+}
+
+/// serde's message about a value of `key` in words a config's author can act on: the allowed
+/// values and the closest one for a misspelt word, the type wanted for a value of another type.
+fn explain_value(message: &str, key: &str) -> String {
+    if let Some(rest) = message.strip_prefix("unknown variant `") {
+        if let Some((value, expected)) = rest.split_once('`') {
+            let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+            let hint = match closest(value, &known) {
+                Some(k) => format!("; did you mean `{k}`?"),
+                None => String::new(),
+            };
+            return format!(
+                "`{key}` cannot be \"{value}\": it takes {}{hint}",
+                known
+                    .iter()
+                    .map(|k| format!("\"{k}\""))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    if let Some(rest) = message.strip_prefix("invalid type: ") {
+        if let Some((found, wanted)) = rest.split_once(", expected ") {
+            let wanted = match wanted.trim() {
+                "usize" | "u64" | "u32" => "a whole number (0 or more)",
+                "f64" | "f32" => "a number",
+                "a boolean" | "bool" => "true or false",
+                "a sequence" => "a list (`[\"...\", ...]`)",
+                "a string" => "text in quotes",
+                other => other,
+            };
+            return format!("`{key}` must be {wanted}, not {found}");
+        }
+    }
+    format!("`{key}`: {message}")
+}
+
 /// For serde's "unknown field `x`, expected one of `a`, `b`" message (with "key" for "field"): the closest expected name.
 fn suggest_for_unknown_field(message: &str) -> Option<String> {
     let rest = message.strip_prefix("unknown key `")?;
     let (field, expected) = rest.split_once('`')?;
     let known: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
     closest(field, &known).map(str::to_owned)
+}
+
+/// The known name closest to `name` by edit distance, if it is close enough to be a typo (for
+/// the command line's flags, as for config keys and rule names).
+pub fn suggest<'a>(name: &str, known: &[&'a str]) -> Option<&'a str> {
+    closest(name, known)
 }
 
 /// The known name closest to `name` by edit distance, if it is close enough to be a typo.
@@ -363,6 +431,29 @@ mod tests {
     fn bad_severity_is_an_error() {
         let err = parse("[rules]\nhole = \"fatal\"\n").unwrap_err();
         assert_eq!(err.position.map(|p| p.0), Some(2));
+    }
+
+    /// A misspelt value names its key, the values it takes and the closest one; a value of the
+    /// wrong type names its key and the type wanted.
+    #[test]
+    fn bad_values_name_their_key_and_what_it_takes() {
+        let err = parse("[rules]\nhole = \"erorr\"\n").unwrap_err();
+        assert_eq!(
+            err.message,
+            "`[rules] hole` cannot be \"erorr\": it takes \"off\", \"warning\", \"error\"; did you \
+             mean `error`?"
+        );
+        let err = parse("weld_tolerance = 0.0\njobs = \"two\"\n").unwrap_err();
+        assert_eq!(err.position.map(|p| p.0), Some(2));
+        assert_eq!(
+            err.message,
+            "`jobs` must be a whole number (0 or more), not string \"two\""
+        );
+        let err = parse("[repair]\nfill_holes = 1\n").unwrap_err();
+        assert_eq!(
+            err.message,
+            "`[repair] fill_holes` must be true or false, not integer `1`"
+        );
     }
 
     #[test]

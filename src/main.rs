@@ -34,9 +34,11 @@ fn main() -> ExitCode {
         "Reads {} (any case).",
         meshvet::formats::Format::extension_list()
     );
-    let matches = Cli::command()
-        .mut_subcommand("scan", |scan| scan.after_help(formats))
-        .get_matches();
+    let command = Cli::command().mut_subcommand("scan", |scan| scan.after_help(formats));
+    let matches = command
+        .clone()
+        .try_get_matches()
+        .unwrap_or_else(|e| exit_with_suggestion(&command, e));
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     match cli.command {
         Command::Scan(args) => match run_scan(&args) {
@@ -46,6 +48,23 @@ fn main() -> ExitCode {
                 ExitCode::from(USAGE)
             }
         },
+        Command::Config(args) => {
+            if args.default {
+                print!("{}", config::DEFAULT_TOML);
+                return ExitCode::SUCCESS;
+            }
+            let found = std::env::current_dir()
+                .ok()
+                .and_then(|cwd| config::discover(&cwd));
+            match found {
+                Some(path) => println!("{}", path.display()),
+                None => println!(
+                    "no {} here or above: a scan uses the built-in defaults (meshvet config --default prints them)",
+                    config::FILE_NAME
+                ),
+            }
+            ExitCode::SUCCESS
+        }
         Command::Merge(args) => {
             let target = cli::target(&args.csv);
             match shard::merge(&args.reports, &target) {
@@ -56,6 +75,46 @@ fn main() -> ExitCode {
                 }
             }
         }
+    }
+}
+
+/// Exits with clap's error, adding the closest flag when an unknown `--flag` is a typo of one
+/// (clap suggests only where no positional value could be meant, and `scan` takes paths).
+fn exit_with_suggestion(command: &clap::Command, e: clap::Error) -> ! {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    let typed = match (e.kind(), e.get(ContextKind::InvalidArg)) {
+        (ErrorKind::UnknownArgument, Some(ContextValue::String(arg))) => arg.clone(),
+        _ => e.exit(),
+    };
+    let Some(typo) = typed.strip_prefix("--") else {
+        e.exit()
+    };
+    let typo = typo.split('=').next().unwrap_or(typo);
+    // The flags of the subcommand named on the command line, else the top level's.
+    let words: Vec<String> = std::env::args().skip(1).collect();
+    let sub = command
+        .get_subcommands()
+        .find(|c| words.iter().any(|w| w == c.get_name()))
+        .unwrap_or(command);
+    let longs: Vec<&str> = sub.get_arguments().filter_map(|a| a.get_long()).collect();
+    match config::suggest(typo, &longs) {
+        Some(known) => {
+            // Clap's own tip (`-- --cvs` to pass it as a path) is not what a typo needs.
+            let text = e.render().to_string();
+            let mut lines: Vec<String> = text
+                .lines()
+                .filter(|l| !l.trim_start().starts_with("tip: to pass"))
+                .map(str::to_owned)
+                .collect();
+            let at = lines.iter().position(|l| l.is_empty()).unwrap_or(1);
+            lines.insert(
+                at + 1,
+                format!("  tip: a similar argument exists: '--{known}'"),
+            );
+            eprintln!("{}", lines.join("\n"));
+            std::process::exit(USAGE.into())
+        }
+        None => e.exit(),
     }
 }
 
@@ -148,7 +207,10 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         std::env::current_dir().map_err(|e| format!("cannot tell the current folder: {e}"))?;
     let (mut settings, config_file) =
         config::resolve(args.config.as_deref(), &cwd, &args.config_layer()).map_err(|e| {
-            format!("bad config: {e}\nfix the config: every key and rule is listed in meshvet's configs/default.toml")
+            format!(
+                "bad config: {e}\nfix the config: `meshvet config --default` prints every key and \
+                 rule with its default and what it does"
+            )
         })?;
     let config_name = config_file.as_ref().map_or_else(
         || "built-in defaults".to_owned(),

@@ -950,3 +950,59 @@ fn a_huge_jobs_count_is_capped_and_changes_no_row() {
         help.stdout
     );
 }
+
+/// A misspelt flag gets the flag it was meant to be, though `scan` takes paths too.
+#[test]
+fn a_misspelt_flag_gets_a_suggestion() {
+    let tree = Tree::new(&[("a.obj", TETRA)]);
+    let run = meshvet(tree.path(), &["scan", "--cvs", "out.csv"]);
+    assert_eq!(run.code, 2);
+    assert!(
+        run.stderr
+            .contains("tip: a similar argument exists: '--csv'"),
+        "{}",
+        run.stderr
+    );
+    assert!(
+        !run.stderr.contains("to pass '--cvs' as a value"),
+        "{}",
+        run.stderr
+    );
+}
+
+/// A misspelt value in a config names its key, what it takes and the closest value; a missing
+/// config points to `meshvet config --default`, which prints the documented defaults.
+#[test]
+fn config_mistakes_say_how_to_fix_them() {
+    let tree = Tree::new(&[
+        ("a.obj", TETRA),
+        ("meshvet.toml", "[rules]\nhole = \"erorr\"\n"),
+    ]);
+    let typo = meshvet(tree.path(), &["scan"]);
+    assert_eq!(typo.code, 2);
+    assert!(typo.stderr.contains("meshvet.toml:2:8"), "{}", typo.stderr);
+    assert!(
+        typo.stderr.contains("did you mean `error`?"),
+        "{}",
+        typo.stderr
+    );
+    let missing = meshvet(tree.path(), &["scan", "--config", "nope.toml"]);
+    assert_eq!(missing.code, 2);
+    assert!(
+        missing.stderr.contains("`meshvet config --default`"),
+        "{}",
+        missing.stderr
+    );
+    let defaults = meshvet(tree.path(), &["config", "--default"]);
+    assert_eq!(defaults.code, 0);
+    let documented =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/default.toml"))
+            .unwrap();
+    assert_eq!(defaults.stdout, documented);
+    let which = meshvet(tree.path(), &["config"]);
+    assert!(
+        which.stdout.trim_end().ends_with("meshvet.toml"),
+        "{}",
+        which.stdout
+    );
+}
