@@ -137,7 +137,7 @@ impl HtmlReport {
         } = outcome;
         let (shells, shell_count, picture) = match detail {
             Some(d) => {
-                let count = d.shells.len();
+                let count = d.shells.iter().filter(|s| !s.pinched).count();
                 let mut shells = d.shells;
                 shells.truncate(MAX_SHELLS);
                 (shells, count, d.picture)

@@ -72,6 +72,7 @@ fn shell(s: &ShellRow) -> Value {
         "depth": s.depth,
         "role": role_name(s.role),
         "inside_out": s.inside_out,
+        "pinched": s.pinched,
     })
 }
 
@@ -141,7 +142,7 @@ mod tests {
         assert_eq!(
             value["shells"],
             serde_json::json!([{"faces": 4, "holes": 0, "genus": 0, "volume": -0.5, "depth": 0,
-                "role": "solid", "inside_out": true}])
+                "role": "solid", "inside_out": true, "pinched": false}])
         );
     }
 }

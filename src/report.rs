@@ -224,6 +224,8 @@ pub struct ShellRow {
     pub depth: usize,
     pub role: Role,
     pub inside_out: bool,
+    /// A pinched solid, not a shell ([`Shell::pinched`]).
+    pub pinched: bool,
 }
 
 impl ShellRow {
@@ -243,6 +245,7 @@ impl ShellRow {
                 depth: shell.depth,
                 role: shell.role,
                 inside_out: shell.inside_out,
+                pinched: shell.pinched,
             })
             .collect()
     }
@@ -302,7 +305,7 @@ impl Row {
             nonmanifold_vertices: Some(a.nonmanifold_vertices),
             inconsistent_edges: Some(a.inconsistent_edges),
             components: Some(a.components.len()),
-            shells: Some(a.shells.len()),
+            shells: Some(a.shell_count()),
             holes: Some(a.holes()),
             orientable: defined.then(|| a.orientable()),
             oriented: defined.then(|| a.oriented()),

@@ -259,9 +259,6 @@ enum Reason {
     /// its first corner, which for a concave polygon makes overlapping triangles (and here
     /// non-manifold edges).
     PolygonFan,
-    /// SPEC 8 defines a volume only for shells (closed *manifold* components); the libraries sum
-    /// signed volumes of any closed mesh, also when a vertex is non-manifold.
-    VolumeNeedsShell,
     /// Not definitional: the reference is wrong for this file. Its PLY header lines end with a
     /// bare CR (old Mac style); the libraries that loaded it read no elements.
     BareCrPlyHeader,
@@ -281,9 +278,6 @@ impl Reason {
             }
             Reason::PolygonFan => {
                 "concave polygons: SPEC ear-clips them; the libraries fan-split (overlaps, nm edges)"
-            }
-            Reason::VolumeNeedsShell => {
-                "volume: SPEC only for closed manifold components; the libraries for any closed mesh"
             }
             Reason::BareCrPlyHeader => {
                 "reference wrong: PLY header with bare-CR line ends, the libraries read nothing"
@@ -342,13 +336,6 @@ impl Reason {
                     ))
                 }
             }
-            Reason::VolumeNeedsShell => {
-                if a.components.iter().any(|c| c.closed && !c.manifold) {
-                    Ok(())
-                } else {
-                    Err("no component is closed and non-manifold".into())
-                }
-            }
             Reason::BareCrPlyHeader => {
                 let bytes = std::fs::read(&cx.path).map_err(|e| e.to_string())?;
                 let end = bytes
@@ -392,8 +379,6 @@ const EXCLUDED: &[(&str, Column, Reason)] = &[
     // Concave polygons (walls with holes, joined by `\` continuation lines; bent quads).
     ("trimesh/wallhole.obj", Closed, Reason::PolygonFan),
     ("common3d/beast.obj", Closed, Reason::PolygonFan),
-    // Closed, but one vertex has two fans: a closed component that is not a shell.
-    ("common3d/cow.obj", Volume, Reason::VolumeNeedsShell),
     // Reference wrong (bare-CR header): the libraries saw an empty file.
     ("draco/Box.ply", Vertices, Reason::BareCrPlyHeader),
     ("draco/Box.ply", Triangles, Reason::BareCrPlyHeader),

@@ -71,7 +71,7 @@ fn counts(a: &Analysis) -> Counts {
         inconsistent_edges: a.inconsistent_edges,
         euler: a.euler,
         components: a.components.len(),
-        shells: a.shells.len(),
+        shells: a.shell_count(),
     }
 }
 
@@ -793,8 +793,11 @@ fn strip_pinched_at_a_vertex_is_one_nonmanifold_component() {
 /// V 9; E = 4 + 4 (rings) + 4 (up) + 4 (diagonals) + 4 + 4 (cone edges) = 24; F = 8 + 4 + 4 = 16;
 /// chi = 9 - 24 + 16 = 1. Every edge bounds exactly 2 faces: closed, no border, no non-manifold edge.
 /// The apex's faces are two fans (top cone, bottom cone) sharing no edge: 1 non-manifold vertex, so
-/// the component is closed but not manifold: not a shell, genus undefined, no volume. Windings agree
-/// everywhere: 0 inconsistent.
+/// the component is closed but not manifold: not a shell, genus undefined. Windings agree
+/// everywhere: 0 inconsistent. Pinched only at a vertex, it still bounds a volume and counts as a
+/// solid: the square prism (the 4 vertices on the unit circle span a square of area 2, height 1:
+/// 2) less the two cones that dip into it to the apex at mid-height (base 2, height 1/2: 1/3
+/// each), 4/3.
 #[test]
 fn capsule_pinched_at_its_poles_is_closed_but_not_a_shell() {
     let mut mesh = shapes::tube(4, 1);
@@ -818,7 +821,8 @@ fn capsule_pinched_at_its_poles_is_closed_but_not_a_shell() {
     assert!(c.closed && !c.manifold);
     assert_eq!((c.euler, c.genus), (1, None));
     assert_eq!(a.genus(), None);
-    assert_volume(a.volume(), None);
+    assert_eq!((a.solids(), a.inside_out_shells()), (1, 0));
+    assert_volume(a.volume(), Some(4.0 / 3.0));
 }
 
 /// Holes are traced on the undirected border (SPEC 7): the 3 x 2 grid with its first triangle
@@ -2353,4 +2357,110 @@ fn million_triangle_torus_has_genus_one() {
             ..clean(500_000, 1_500_000, 1_000_000)
         }
     );
+}
+
+// ---------------------------------------------------------------------------------------------------
+// A closed component pinched at a vertex
+// ---------------------------------------------------------------------------------------------------
+
+/// A solid pinched at one vertex: two square pyramids with their apex at the origin P and their
+/// bases at x = 1 and x = -1 (`y, z` in `[-1, 1]`), joined base to base by a U-shaped tube of seven
+/// 2 x 2 x 2 boxes (`y` in `[-1, 1]`; in `x, z`: `[1,3]x[-1,1]`, `[1,3]x[1,3]`, `[1,3]x[3,5]`,
+/// `[-1,1]x[3,5]`, `[-3,-1]x[3,5]`, `[-3,-1]x[1,3]`, `[-3,-1]x[-1,1]`), every face wound outward.
+/// Each box shows 4 of its 6 sides (2 are joints), 8 triangles; the pyramids 4 each: F = 64.
+/// V = 32 tube corners (16 `(x, z)` pairs, 2 `y`) + P = 33; every edge bounds two faces, so
+/// E = 3F/2 = 96 and chi = 33 - 96 + 64 = 1 (a sphere with two points made one). P has two fans,
+/// one per pyramid: the component is closed but not manifold, so not a shell, and it still bounds
+/// 7 x 8 + 2 x 4/3 = 176/3, counted as one solid. Wound inward, it is one inside-out solid.
+#[test]
+fn a_closed_component_pinched_at_a_vertex_is_a_solid_not_a_shell() {
+    let mut positions: Vec<[f64; 3]> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    // Adds the polygon `corners` wound so that its normal points away from `inside`.
+    let mut face = |corners: &[[f64; 3]], inside: [f64; 3]| {
+        let normal = |c: &[[f64; 3]]| {
+            let (a, b, d) = (c[0], c[1], c[2]);
+            let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+            let v = [d[0] - a[0], d[1] - a[1], d[2] - a[2]];
+            [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ]
+        };
+        let n = normal(corners);
+        let out = [0, 1, 2].map(|k| corners[0][k] - inside[k]);
+        let mut c = corners.to_vec();
+        if n[0] * out[0] + n[1] * out[1] + n[2] * out[2] < 0.0 {
+            c.reverse();
+        }
+        let base = positions.len() as u32;
+        positions.extend_from_slice(&c);
+        for k in 1..c.len() as u32 - 1 {
+            triangles.push([base, base + k, base + k + 1]);
+        }
+    };
+    // (x range, z range, the two sides that are joints: 0 -x, 1 +x, 4 -z, 5 +z)
+    let boxes: [([f64; 2], [f64; 2], [usize; 2]); 7] = [
+        ([1.0, 3.0], [-1.0, 1.0], [0, 5]),
+        ([1.0, 3.0], [1.0, 3.0], [4, 5]),
+        ([1.0, 3.0], [3.0, 5.0], [4, 0]),
+        ([-1.0, 1.0], [3.0, 5.0], [1, 0]),
+        ([-3.0, -1.0], [3.0, 5.0], [1, 4]),
+        ([-3.0, -1.0], [1.0, 3.0], [5, 4]),
+        ([-3.0, -1.0], [-1.0, 1.0], [5, 1]),
+    ];
+    for (x, z, joints) in boxes {
+        let (lo, hi) = ([x[0], -1.0, z[0]], [x[1], 1.0, z[1]]);
+        let centre = [0, 1, 2].map(|k| (lo[k] + hi[k]) / 2.0);
+        for side in 0..6 {
+            if joints.contains(&side) {
+                continue;
+            }
+            let (axis, at) = (side / 2, if side % 2 == 0 { lo } else { hi });
+            let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+            let corner = |a: f64, b: f64| {
+                let mut p = at;
+                p[i] = a;
+                p[j] = b;
+                p
+            };
+            face(
+                &[
+                    corner(lo[i], lo[j]),
+                    corner(hi[i], lo[j]),
+                    corner(hi[i], hi[j]),
+                    corner(lo[i], hi[j]),
+                ],
+                centre,
+            );
+        }
+    }
+    for x in [1.0, -1.0] {
+        let square = [
+            [x, -1.0, -1.0],
+            [x, 1.0, -1.0],
+            [x, 1.0, 1.0],
+            [x, -1.0, 1.0],
+        ];
+        for k in 0..4 {
+            face(
+                &[[0.0; 3], square[k], square[(k + 1) % 4]],
+                [0.75 * x, 0.0, 0.0],
+            );
+        }
+    }
+    let mesh = Mesh::new(positions, triangles);
+    let a = run(&mesh);
+    let mut expected = clean(33, 96, 64);
+    expected.vertices = mesh.positions.len();
+    expected.nonmanifold_vertices = 1;
+    expected.components = 1;
+    assert_eq!(counts(&a), expected);
+    assert_eq!((a.holes(), a.genus()), (0, None));
+    assert_eq!((a.solids(), a.cavities(), a.inside_out_shells()), (1, 0, 0));
+    assert!(close(a.volume().unwrap(), 176.0 / 3.0), "{:?}", a.volume());
+    let a = run(&flipped(&mesh));
+    assert_eq!((a.solids(), a.inside_out_shells()), (1, 1));
+    assert!(close(a.volume().unwrap(), 176.0 / 3.0), "{:?}", a.volume());
 }

@@ -10,7 +10,7 @@ use crate::rules::{Finding, Rule, Severity};
 use crate::topology::Role;
 
 /// First line of every entry's body; bump the number when the body changes shape.
-pub(super) const HEADER: &[u8] = b"meshvet-cache 4\n";
+pub(super) const HEADER: &[u8] = b"meshvet-cache 5\n";
 
 /// A whole record: frame, then the body (header, checksum of the rest, the rest).
 pub(super) fn record(
@@ -203,6 +203,7 @@ pub(super) fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
                 Role::Cavity => b'c',
             });
             out.push(u8::from(s.inside_out));
+            out.push(u8::from(s.pinched));
         }
     }
     Ok(out)
@@ -258,6 +259,7 @@ pub(super) fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
                         _ => return None,
                     },
                     inside_out: r.u8()? == 1,
+                    pinched: r.u8()? == 1,
                 })
             })
             .collect::<Option<Vec<_>>>()?;

@@ -453,7 +453,10 @@ fn shells(
     let mut shell_of = vec![UNSET; components.len()];
     let mut shells: Vec<Shell> = Vec::new();
     for (i, c) in components.iter().enumerate() {
-        if c.closed && c.manifold {
+        // A closed component that is not manifold only because a vertex is pinched (its edges
+        // all have valence 2) still bounds a volume when it can be wound consistently.
+        let pinched = c.closed && !c.manifold && c.orientable;
+        if c.closed && c.manifold || pinched {
             shell_of[i] = shells.len() as u32;
             shells.push(Shell {
                 component: i,
@@ -462,6 +465,7 @@ fn shells(
                 genus: c.genus,
                 orientable: c.orientable,
                 oriented: c.oriented,
+                pinched,
                 bbox: [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]],
                 ..Shell::default()
             });
@@ -470,9 +474,11 @@ fn shells(
     if shells.is_empty() {
         return shells;
     }
-    // Bounding box and P, the mean of the shell's vertices: a shell is manifold, so each of
-    // its vertices has exactly one fan in it.
+    // Bounding box and P, the mean of the shell's vertices (each fan of a vertex in the shell
+    // once: a shell's vertices have one fan each, a pinched vertex one per fan, which moves P a
+    // little and the volume not at all).
     let mut mean = vec![[0.0f64; 3]; shells.len()];
+    let mut count = vec![0usize; shells.len()];
     for &(v, comp) in fans {
         let s = shell_of[comp as usize];
         if s != UNSET {
@@ -483,10 +489,11 @@ fn shells(
                 bbox[1][k] = bbox[1][k].max(p[k]);
                 mean[s as usize][k] += p[k];
             }
+            count[s as usize] += 1;
         }
     }
-    for (m, shell) in mean.iter_mut().zip(&shells) {
-        *m = m.map(|x| x / shell.vertices as f64);
+    for (m, &n) in mean.iter_mut().zip(&count) {
+        *m = m.map(|x| x / n as f64);
     }
 
     // Six times the volume, `sum mp(A-P, B-P, C-P)`, with the faces of parity `true` negated: the

@@ -56,7 +56,7 @@ pub struct Analysis {
     pub bbox: Option<[[f64; 3]; 2]>,
     /// Edge-connected components, in order of their lowest face.
     pub components: Vec<Component>,
-    /// Closed manifold components, in component order.
+    /// Closed manifold components (and pinched solids, [`Shell::pinched`]), in component order.
     pub shells: Vec<Shell>,
 }
 
@@ -95,7 +95,9 @@ pub enum Role {
 }
 
 /// A closed, manifold component with its place in the nesting
-/// ([definitions](crate::definitions#volume-and-nesting)).
+/// ([definitions](crate::definitions#volume-and-nesting)); or a closed, orientable component that
+/// is not manifold only because a vertex is pinched ([`Shell::pinched`]), which bounds a volume
+/// all the same.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Shell {
     /// Index into [`Analysis::components`].
@@ -105,6 +107,9 @@ pub struct Shell {
     pub genus: Option<i64>,
     pub orientable: bool,
     pub oriented: bool,
+    /// Not a shell but a pinched solid: closed, orientable, non-manifold only at vertices. Counted
+    /// in `solids`, `cavities`, `inside_out_shells` and `volume`, not in `shells`.
+    pub pinched: bool,
     /// Signed volume, `(1/6) sum mp(A-P, B-P, C-P)` with P the mean of the shell's vertices,
     /// with the faces taken in a consistent winding: the stored one when the shell is oriented, else
     /// the winding of the majority of its faces, and on a tie the winding of its first face by
@@ -144,6 +149,11 @@ impl Analysis {
             return None;
         }
         self.components.iter().map(|c| c.genus).sum()
+    }
+
+    /// Closed, manifold components (the pinched solids in [`Analysis::shells`] left out).
+    pub fn shell_count(&self) -> usize {
+        self.shells.iter().filter(|s| !s.pinched).count()
     }
 
     pub fn solids(&self) -> usize {
