@@ -203,8 +203,7 @@ mod tests {
                 ..Row::default()
             },
             findings,
-            shells: Vec::new(),
-            detail: None,
+            ..Outcome::default()
         }
     }
 

@@ -54,6 +54,8 @@ pub struct Copy {
     pub path: String,
     /// The plan's summary: `drop-degenerate-faces:2;orient-faces:14;...`.
     pub repairs: String,
+    /// What the plan did: each repair's name, count and faces added or turned.
+    pub done: Vec<(&'static str, usize, Option<usize>)>,
     pub status: Status,
     pub findings: Vec<Finding>,
 }
@@ -134,6 +136,11 @@ pub fn repair_file(
                 done.copy = Some(Copy {
                     path: path.clone(),
                     repairs: plan.summary(),
+                    done: plan
+                        .done
+                        .iter()
+                        .map(|&(kind, n, faces)| (kind.name(), n, faces))
+                        .collect(),
                     status,
                     findings,
                 });

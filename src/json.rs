@@ -3,18 +3,20 @@
 //!
 //! Each object has every CSV column under its CSV name, in CSV order, typed: counts and floats are
 //! JSON numbers, booleans are `true`/`false`, an undefined number or boolean (an empty CSV cell) is
-//! `null`, and text columns stay text (`mesh`, `repairs`, ... are `""` when empty). Two keys carry more than their CSV cells: `findings` is an array of
-//! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cell spelt out), and
-//! `shells` is the per-shell table
-//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out}` (the CSV's count is its
-//! length). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
+//! `null`, and text columns stay text (`mesh`, `repaired_path`, ... are `""` when empty). Four keys
+//! carry more than their CSV cells: `findings` and `findings_after` are arrays of
+//! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cells spelt out),
+//! `repairs` an array of `{repair, count, faces}` (`faces`: the faces a `fill-holes` or
+//! `flip-inside-out-shells` added or turned, else `null`), and `shells` the per-shell table
+//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out, pinched}` (the CSV's
+//! count is its length, less the pinched solids). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
 
 use std::io::{self, Write};
 
 use serde_json::Value;
 
 use crate::report::Outcome;
-use crate::report::{Cell, Output, ShellRow, Target};
+use crate::report::{Cell, Output, RepairDone, ShellRow, Target};
 use crate::rules::Finding;
 use crate::topology::Role;
 
@@ -48,6 +50,14 @@ pub fn record(outcome: &Outcome) -> Value {
         outcome.findings.iter().map(finding).collect(),
     );
     object.insert(
+        "repairs".to_owned(),
+        outcome.repairs.iter().map(repair).collect(),
+    );
+    object.insert(
+        "findings_after".to_owned(),
+        outcome.findings_after.iter().map(finding).collect(),
+    );
+    object.insert(
         "shells".to_owned(),
         outcome.shells.iter().map(shell).collect(),
     );
@@ -61,6 +71,10 @@ fn finding(f: &Finding) -> Value {
         "count": f.count,
         "message": f.message,
     })
+}
+
+fn repair(r: &RepairDone) -> Value {
+    serde_json::json!({"repair": r.repair, "count": r.count, "faces": r.faces})
 }
 
 fn shell(s: &ShellRow) -> Value {
@@ -117,7 +131,12 @@ mod tests {
                 inside_out: true,
                 ..ShellRow::default()
             }],
-            detail: None,
+            repairs: vec![RepairDone {
+                repair: "fill-holes",
+                count: 1,
+                faces: Some(6),
+            }],
+            ..Outcome::default()
         };
         let value = record(&outcome);
         let keys: Vec<&str> = value
@@ -139,6 +158,11 @@ mod tests {
             serde_json::json!([{"rule": "inside-out-shell", "severity": "error", "count": 1,
                 "message": "1 inside-out shell"}])
         );
+        assert_eq!(
+            value["repairs"],
+            serde_json::json!([{"repair": "fill-holes", "count": 1, "faces": 6}])
+        );
+        assert_eq!(value["findings_after"], serde_json::json!([]));
         assert_eq!(
             value["shells"],
             serde_json::json!([{"faces": 4, "holes": 0, "genus": 0, "volume": -0.5, "depth": 0,

@@ -4,7 +4,8 @@
 //!
 //! - `pass` and `warn` meshes pass; warnings are listed in the case's `system-out`.
 //! - A `fail` mesh has a `<failure>`: its message names every error-severity finding
-//!   (`rule: message; ...`), its type the worst rule, and its text one line per error finding.
+//!   (`rule: message; ...`), its type every error rule (`non-manifold-edge,non-manifold-vertex`,
+//!   in the findings' order), and its text one line per error finding.
 //!   JUnit tools count a test case as failed once, and quick-junit writes one failure element per
 //!   case, so several error findings share that one element, a line each.
 //! - An `error` row (the file could not be read) is an `<error>` with the row's message.
@@ -77,9 +78,13 @@ pub fn case(outcome: &Outcome) -> TestCase {
             let errors = of(Severity::Error);
             let mut status = TestCaseStatus::non_success(NonSuccessKind::Failure);
             status.set_message(errors.join("; "));
-            if let Some(worst) = outcome.findings.first() {
-                status.set_type(worst.rule.name());
-            }
+            let rules: Vec<&str> = outcome
+                .findings
+                .iter()
+                .filter(|f| f.severity == Severity::Error)
+                .map(|f| f.rule.name())
+                .collect();
+            status.set_type(rules.join(","));
             status.set_description(errors.join("\n"));
             status
         }

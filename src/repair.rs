@@ -139,8 +139,10 @@ pub struct Plan {
     /// Whether each vertex (input, then new) is kept in the output. All `true` unless unreferenced
     /// vertices are dropped.
     pub used_vertices: Vec<bool>,
-    /// Repairs done, with counts (zero counts left out), in the documented order ([`Kind`]).
-    pub done: Vec<(Kind, usize, Option<String>)>,
+    /// Repairs done, with counts (zero counts left out), in the documented order ([`Kind`]), and
+    /// the faces they added or turned where that is more than the count says (holes filled,
+    /// shells flipped).
+    pub done: Vec<(Kind, usize, Option<usize>)>,
     /// Defects left in place, in words (non-orientable components, holes over the limit).
     pub not_repairable: Vec<String>,
 }
@@ -156,8 +158,8 @@ impl Plan {
         let parts: Vec<String> = self
             .done
             .iter()
-            .map(|(kind, n, detail)| match detail {
-                Some(d) => format!("{}:{n}({d})", kind.name()),
+            .map(|(kind, n, faces)| match faces {
+                Some(f) => format!("{}:{n}({f} faces)", kind.name()),
                 None => format!("{}:{n}", kind.name()),
             })
             .collect();
@@ -207,7 +209,7 @@ pub fn plan(mesh: &Mesh, options: &Options) -> Plan {
 /// given and built with this weld tolerance) instead of building them again.
 pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
     let mut work = Work::new(mesh, options, built);
-    let mut done: Vec<(Kind, usize, Option<String>)> = Vec::new();
+    let mut done: Vec<(Kind, usize, Option<usize>)> = Vec::new();
     let mut not_repairable = Vec::new();
 
     let [invalid, degenerate, duplicate] = work.drop_faces(options);
@@ -232,11 +234,7 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
     }
     if options.fill_holes {
         let fill = work.fill_holes(options.max_hole_edges);
-        done.push((
-            Kind::FillHoles,
-            fill.holes,
-            Some(format!("{} faces", fill.faces)),
-        ));
+        done.push((Kind::FillHoles, fill.holes, Some(fill.faces)));
         if fill.too_large > 0 {
             not_repairable.push(format!(
                 "{} hole{} over {} edges left open",
@@ -272,11 +270,7 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
     // sees every shell, including those the fills closed and those whose depth a fill changed.
     if options.flip_inside_out {
         let (shells, faces) = work.flip_inside_out();
-        done.push((
-            Kind::FlipInsideOutShells,
-            shells,
-            Some(format!("{faces} faces")),
-        ));
+        done.push((Kind::FlipInsideOutShells, shells, Some(faces)));
     }
 
     let mut used_vertices = vec![!options.drop_unreferenced_vertices; work.vertex_count()];

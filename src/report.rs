@@ -259,7 +259,7 @@ impl Row {
             format: format.map_or_else(String::new, |f| f.name().to_owned()),
             status: Some(Status::Error),
             message: message.to_owned(),
-            millis: Some(millis),
+            millis: Some(to_microseconds(millis)),
             ..Row::default()
         }
     }
@@ -324,7 +324,7 @@ impl Row {
             bbox_max_z: bbox(1, 2),
             repaired_path: String::new(),
             repairs: String::new(),
-            millis: Some(millis),
+            millis: Some(to_microseconds(millis)),
             invalid_faces: Some(a.invalid_faces),
             mirrored_instances: Some(mirrored_instances),
             findings: findings_cell(findings),
@@ -332,6 +332,12 @@ impl Row {
             findings_after: String::new(),
         }
     }
+}
+
+/// Milliseconds rounded to the microsecond, so that a sum of two times prints `0.021`, not
+/// `0.020999999999999998`.
+pub fn to_microseconds(millis: f64) -> f64 {
+    (millis * 1e3).round() / 1e3
 }
 
 /// `rule:count;rule:count` in the findings' order.
@@ -355,6 +361,20 @@ pub struct Outcome {
     /// What a detailed report shows beyond the row; only when the scan was asked for details and
     /// the mesh has triangles.
     pub detail: Option<Box<Detail>>,
+    /// The repairs a repaired copy had (the `repairs` cell spelt out), and what judging the copy
+    /// found (the `findings_after` cell spelt out). Empty without a copy; never cached (a
+    /// repairing scan reads every file).
+    pub repairs: Vec<RepairDone>,
+    pub findings_after: Vec<Finding>,
+}
+
+/// One repair of a copy: its stable name, how many it did, and the faces it added or turned
+/// where the repair says (`fill-holes`, `flip-inside-out-shells`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RepairDone {
+    pub repair: &'static str,
+    pub count: usize,
+    pub faces: Option<usize>,
 }
 
 /// The per-shell table and the drawing of one mesh, made while it is in memory.
@@ -469,6 +489,28 @@ mod tests {
         let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(names.len(), 1, "the temporary file is gone");
         std::fs::read_to_string(path).unwrap()
+    }
+
+    /// Read and analysis times add up to float noise (0.009 + 0.012 is 0.020999999999999998): the
+    /// cell is rounded to the microsecond.
+    #[test]
+    fn millis_are_written_to_the_microsecond() {
+        let row = Row::analysed(
+            "a.obj",
+            None,
+            Format::Obj,
+            Status::Pass,
+            &Analysis::default(),
+            &[],
+            &[],
+            0,
+            0.009 + 0.012,
+        );
+        assert_eq!(
+            row.cells()[COLUMNS.iter().position(|c| *c == "millis").unwrap()],
+            "0.021"
+        );
+        assert_eq!(Row::error("b.obj", None, "", 1.0 / 3.0).millis, Some(0.333));
     }
 
     /// Every cell reads back as what it was written from, and a cell of the wrong type is an

@@ -22,7 +22,7 @@ use crate::formats::{self, Format, ReadContext};
 use crate::judge::{judge, Judged};
 use crate::mesh::Mesh;
 use crate::picture;
-use crate::report::{Detail, Outcome, Row, ShellRow};
+use crate::report::{Detail, Outcome, RepairDone, Row, ShellRow};
 use crate::rules::Status;
 use crate::topology::places;
 use crate::walk::Source;
@@ -295,17 +295,28 @@ pub fn outcome(
         mesh.mirrored_instances,
         millis,
     );
+    let mut outcome = Outcome::default();
     if let Some(copy) = &repaired.copy {
         row.repaired_path = copy.path.clone();
         row.repairs = copy.repairs.clone();
         row.status_after = copy.status.to_string();
         row.findings_after = crate::report::findings_cell(&copy.findings);
+        outcome.repairs = copy
+            .done
+            .iter()
+            .map(|&(repair, count, faces)| RepairDone {
+                repair,
+                count,
+                faces,
+            })
+            .collect();
+        outcome.findings_after = copy.findings.clone();
     }
     Outcome {
         row,
         shells: ShellRow::of(&judged.analysis),
         findings: judged.findings,
-        detail: None,
+        ..outcome
     }
 }
 

@@ -196,7 +196,18 @@ fn scan_tree() -> TempDir {
 #[test]
 fn json_lines_carry_every_csv_column_findings_and_shells() {
     let dir = scan_tree();
-    let run = meshvet(dir.path(), &["scan", "--csv", "r.csv", "--json", "r.jsonl"]);
+    let run = meshvet(
+        dir.path(),
+        &[
+            "scan",
+            "--csv",
+            "r.csv",
+            "--json",
+            "r.jsonl",
+            "--repair-dir",
+            "fixed",
+        ],
+    );
     assert_eq!(run.code, 1, "{}", run.stderr);
     let csv = read(dir.path(), "r.csv");
     let mut reader = csv::Reader::from_reader(csv.as_bytes());
@@ -223,7 +234,7 @@ fn json_lines_carry_every_csv_column_findings_and_shells() {
         for (name, cell) in header.iter().zip(row.iter()) {
             let value = &object[name.as_str()];
             match name.as_str() {
-                "findings" => {
+                "findings" | "findings_after" => {
                     let rules: Vec<String> = value
                         .as_array()
                         .unwrap()
@@ -231,6 +242,22 @@ fn json_lines_carry_every_csv_column_findings_and_shells() {
                         .map(|f| format!("{}:{}", f["rule"].as_str().unwrap(), f["count"]))
                         .collect();
                     assert_eq!(rules.join(";"), cell, "the CSV cell spelt out");
+                }
+                "repairs" => {
+                    let done: Vec<String> = value
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|r| match r["faces"].as_u64() {
+                            Some(f) => format!(
+                                "{}:{}({f} faces)",
+                                r["repair"].as_str().unwrap(),
+                                r["count"]
+                            ),
+                            None => format!("{}:{}", r["repair"].as_str().unwrap(), r["count"]),
+                        })
+                        .collect();
+                    assert_eq!(done.join(";"), cell, "the CSV cell spelt out");
                 }
                 "shells" => {
                     let count = value.as_array().unwrap().len();
@@ -280,6 +307,12 @@ fn json_lines_carry_every_csv_column_findings_and_shells() {
         (&"solid".into(), &true.into())
     );
     assert!((shell["volume"].as_f64().unwrap() + 1.0 / 6.0).abs() < 1e-12);
+    // Its copy: the one shell turned (4 faces), and nothing left to find.
+    assert_eq!(
+        flipped["repairs"],
+        serde_json::json!([{"repair": "flip-inside-out-shells", "count": 1, "faces": 4}])
+    );
+    assert_eq!(flipped["findings_after"], serde_json::json!([]));
     let garbage = objects
         .iter()
         .find(|o| o["path"] == "c/garbage.stl")
@@ -325,7 +358,11 @@ fn junit_has_one_suite_a_case_per_mesh_and_the_right_counts() {
         .children()
         .find(|n| n.has_tag_name("failure"))
         .unwrap();
-    assert_eq!(failure.attribute("type"), Some("non-manifold-edge"));
+    assert_eq!(
+        failure.attribute("type"),
+        Some("non-manifold-edge,non-manifold-vertex"),
+        "every error rule"
+    );
     assert_eq!(
         failure.text().unwrap().lines().collect::<Vec<_>>(),
         [

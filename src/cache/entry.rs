@@ -267,7 +267,7 @@ pub(super) fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
             row,
             findings,
             shells,
-            detail: None,
+            ..Outcome::default()
         });
     }
     (r.0.is_empty() && !outcomes.is_empty()).then_some(outcomes)
