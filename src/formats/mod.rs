@@ -15,6 +15,7 @@ pub(crate) mod off;
 pub(crate) mod ply;
 pub(crate) mod polygon;
 mod stl;
+pub(crate) mod threemf;
 pub mod write;
 
 /// The file formats meshvet reads.
