@@ -53,6 +53,8 @@ pub(crate) struct Read {
     pub sources: Vec<(usize, usize)>,
     /// Every model part read, as (key, model).
     pub parts: Vec<(String, Model)>,
+    /// The name of each part as the package spells it (`/3D/3dmodel.model`).
+    pub names: Vec<String>,
 }
 
 /// [`read`], keeping what the writer needs.
@@ -75,6 +77,7 @@ struct Parts<'a> {
     cx: &'a ReadContext,
     keep: bool,
     parts: Vec<(String, Model)>,
+    names: Vec<String>,
     index: FxHashMap<String, usize>,
     encrypted: Vec<String>,
     totals: Totals,
@@ -87,12 +90,14 @@ impl Parts<'_> {
             return Ok(i);
         }
         if self.encrypted.iter().any(|k| k == key) {
-            return Err(package::encrypted(&format!("/{key}")));
+            return Err(package::encrypted(&self.package.name(key)));
         }
         // What the part's own relationships name must lie inside the package too.
         self.package.relationships(&Package::rels_of(key), key)?;
+        let name = self.package.name(key);
         let settings = model::Settings {
             key,
+            name: &name,
             root,
             keep: self.keep,
             limits: &self.cx.limits,
@@ -109,6 +114,7 @@ impl Parts<'_> {
         )?;
         self.index.insert(key.to_owned(), self.parts.len());
         self.parts.push((key.to_owned(), model));
+        self.names.push(name);
         Ok(self.parts.len() - 1)
     }
 }
@@ -137,14 +143,14 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
             return Err(ReadError::new(format!(
                 "_rels/.rels names {} root model parts ({}); a 3MF package has exactly one, so which one is printed is unclear - re-export the file",
                 many.len(),
-                many.iter().map(|k| format!("/{k}")).collect::<Vec<_>>().join(", ")
+                many.iter().map(|k| package.name(k)).collect::<Vec<_>>().join(", ")
             )))
         }
     };
     let mut encrypted = Vec::new();
     for keystore in relationships.iter().filter(|r| r.kind == KEYSTORE) {
         if let Some(bytes) = package.read(&keystore.target)? {
-            encrypted.extend(model::keystore(&bytes, &keystore.target)?);
+            encrypted.extend(model::keystore(&bytes, &package.name(&keystore.target))?);
         }
     }
     let mut parts = Parts {
@@ -152,6 +158,7 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
         cx,
         keep,
         parts: Vec::new(),
+        names: Vec::new(),
         index: FxHashMap::default(),
         encrypted,
         totals: Totals::default(),
@@ -160,8 +167,8 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
     // Every part a reference names, until none is new.
     let mut next = 0;
     while next < parts.parts.len() {
-        let (key, model) = &parts.parts[next];
-        let from = format!("part /{key}");
+        let model = &parts.parts[next].1;
+        let from = format!("part {}", parts.names[next]);
         let named: Vec<String> = model
             .items
             .iter()
@@ -178,10 +185,11 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
     }
     let Parts {
         parts: models,
+        names,
         index,
         ..
     } = parts;
-    assemble(models, &index, keep)
+    assemble(models, names, &index, keep)
 }
 
 /// Node numbers: part `p`'s object `o` is `first[p] + o`.
@@ -189,6 +197,7 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
 /// keep them for the writer).
 fn assemble(
     mut models: Vec<(String, Model)>,
+    names: Vec<String>,
     index: &FxHashMap<String, usize>,
     keep: bool,
 ) -> Result<Read, ReadError> {
@@ -199,12 +208,11 @@ fn assemble(
         nodes.extend((0..model.objects.len()).map(|o| (p, o)));
     }
     let label = |p: usize, o: usize| -> String {
-        let (key, model) = &models[p];
-        let object = &model.objects[o];
+        let object = &models[p].1.objects[o];
         let id = if p == 0 {
             format!("object {}", object.id)
         } else {
-            format!("object {} of /{key}", object.id)
+            format!("object {} of {}", object.id, names[p])
         };
         match &object.name {
             Some(name) => format!("{id} (\"{name}\")"),
@@ -225,12 +233,13 @@ fn assemble(
             })?,
             None => p,
         };
-        let (key, model) = &models[target];
+        let model = &models[target].1;
         let o = *model.ids.get(&r.object).ok_or_else(|| {
             ReadError::new(format!(
-                "{} names object {}, which part /{key} does not define: the file is damaged - re-export it",
+                "{} names object {}, which part {} does not define: the file is damaged - re-export it",
                 who(),
-                r.object
+                r.object,
+                names[target]
             ))
         })?;
         if model.objects[o].kind == Kind::Other {
@@ -308,7 +317,7 @@ fn assemble(
             name: Some(match &object.name {
                 Some(name) => name.clone(),
                 None if p == 0 => format!("#{}", object.id),
-                None => format!("/{}#{}", models[p].0, object.id),
+                None => format!("{}#{}", names[p], object.id),
             }),
             notes,
             mirrored_instances: u32::try_from(placed.negative).unwrap_or(u32::MAX),
@@ -342,7 +351,7 @@ fn assemble(
             mesh.name = Some(if p == 0 {
                 format!("{name} (#{id})")
             } else {
-                format!("{name} (/{}#{id})", models[p].0)
+                format!("{name} ({}#{id})", names[p])
             });
         }
     }
@@ -350,5 +359,6 @@ fn assemble(
         meshes,
         sources,
         parts: models,
+        names,
     })
 }

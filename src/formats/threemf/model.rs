@@ -204,6 +204,8 @@ enum Node {
 pub struct Settings<'a> {
     /// The part's key.
     pub key: &'a str,
+    /// The part's name as the package spells it (`/3D/3dmodel.model`), for messages.
+    pub name: &'a str,
     /// Whether this is the root model part (its build is used and required).
     pub root: bool,
     /// Keep per-triangle properties (for the writer).
@@ -225,7 +227,7 @@ pub fn parse<R: BufRead>(
     settings: &Settings<'_>,
     totals: &mut Totals,
 ) -> Result<Model, ReadError> {
-    let part = format!("/{}", settings.key);
+    let part = settings.name.to_owned();
     let mut xml = Xml::new(source, &part);
     let mut buf = Vec::with_capacity(1 << 10);
     let mut stack: Vec<Node> = Vec::with_capacity(8);
@@ -793,14 +795,14 @@ fn extra_name(ns: Option<&[u8]>, local: &[u8]) -> String {
     }
 }
 
-/// The relationships of the `.rels` part `rels` (bytes), their targets resolved against
-/// `source`; an external target or one outside the package is refused.
+/// The relationships of the `.rels` part named `part` (bytes), their targets resolved against
+/// `source` (a key); an external target or one outside the package is refused.
 pub fn relationships(
     bytes: &[u8],
-    rels: &str,
+    part: &str,
     source: &str,
 ) -> Result<Vec<Relationship>, ReadError> {
-    let part = format!("/{rels}");
+    let part = part.to_owned();
     let mut xml = Xml::new(bytes, &part);
     let mut buf = Vec::new();
     let mut out = Vec::new();
@@ -851,8 +853,8 @@ pub fn relationships(
 }
 
 /// The parts a secure-content keystore lists as encrypted (its `resourcedata` paths, as keys).
-pub fn keystore(bytes: &[u8], key: &str) -> Result<Vec<String>, ReadError> {
-    let part = format!("/{key}");
+pub fn keystore(bytes: &[u8], part: &str) -> Result<Vec<String>, ReadError> {
+    let part = part.to_owned();
     let mut xml = Xml::new(bytes, &part);
     let mut buf = Vec::new();
     let mut out = Vec::new();
@@ -883,6 +885,7 @@ mod tests {
         let limits = Limits::default();
         let settings = Settings {
             key: "3d/3dmodel.model",
+            name: "/3D/3dmodel.model",
             root: true,
             keep: true,
             limits: &limits,
@@ -1034,7 +1037,7 @@ mod tests {
     fn relationships_resolve_and_refuse_outside_targets() {
         let rels = br#"<?xml version="1.0"?><Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="r0" Type="T"/><Relationship Target="thumb.png" Id="r1" Type="U"/></Relationships>"#;
         assert_eq!(
-            relationships(rels, "_rels/.rels", "").unwrap(),
+            relationships(rels, "/_rels/.rels", "").unwrap(),
             [
                 Relationship {
                     kind: "T".into(),
@@ -1047,7 +1050,7 @@ mod tests {
             ]
         );
         let external = br#"<Relationships><Relationship Target="x.model" TargetMode="External" Type="T"/></Relationships>"#;
-        let e = relationships(external, "_rels/.rels", "").unwrap_err();
+        let e = relationships(external, "/_rels/.rels", "").unwrap_err();
         assert!(e.0.contains("External"), "{e}");
     }
 }

@@ -169,7 +169,7 @@ impl Package {
         let Some(bytes) = self.read(rels)? else {
             return Ok(Vec::new());
         };
-        super::model::relationships(&bytes, rels, source)
+        super::model::relationships(&bytes, &self.name(rels), source)
     }
 
     /// The key of the `.rels` part of `part` (`3d/3dmodel.model` -> `3d/_rels/3dmodel.model.rels`).
@@ -183,6 +183,16 @@ impl Package {
     /// Every entry, in archive order, for the writer.
     pub fn into_archive(self) -> ZipArchive<BufReader<File>> {
         self.archive
+    }
+
+    /// The name of part `key` as the package spells it, with a leading `/` (for messages).
+    pub fn name(&self, key: &str) -> String {
+        let name = self
+            .parts
+            .get(key)
+            .and_then(|&i| self.archive.by_index_data(i).ok())
+            .map(|e| String::from_utf8_lossy(e.name_raw()).into_owned());
+        format!("/{}", name.as_deref().unwrap_or(key))
     }
 
     /// The entry index of a part.
@@ -355,6 +365,29 @@ mod tests {
         }
         // A colon after the first slash is part of a name, not a scheme.
         assert_eq!(resolve("/3D/a:b.model", ""), Ok("3d/a:b.model".into()));
+    }
+
+    /// A stream that goes on past the size its entry declares is cut off with an error; one that
+    /// ends there reads whole.
+    #[test]
+    fn a_part_stops_at_its_declared_size() {
+        let read = |data: &'static [u8], left: u64| {
+            let mut reader = PartReader {
+                inner: Box::new(data),
+                left,
+                name: "/3D/x.model".into(),
+            };
+            let mut out = Vec::new();
+            reader.read_to_end(&mut out).map(|_| out)
+        };
+        assert_eq!(read(b"<model/>", 8).unwrap(), b"<model/>");
+        let e = read(b"<model/>   ", 8).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("more bytes than its ZIP entry declares"),
+            "{e}"
+        );
+        assert_eq!(io_message(&e, "3d/x.model"), e.to_string());
     }
 
     #[test]

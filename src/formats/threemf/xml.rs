@@ -193,7 +193,6 @@ pub fn each_attribute(
     // Names seen so far, without an allocation for the usual handful.
     let mut seen: [&[u8]; 8] = [&[]; 8];
     let mut more: Vec<&[u8]> = Vec::new();
-    let mut count = 0usize;
     let bad = |what: String| {
         ReadError::new(format!(
             "part {part} {what}: the file is damaged - re-export it"
@@ -201,7 +200,7 @@ pub fn each_attribute(
     };
     let mut attributes = e.attributes();
     attributes.with_checks(false);
-    for attribute in attributes {
+    for (count, attribute) in attributes.enumerate() {
         let attribute = attribute.map_err(|err| {
             bad(format!(
                 "has a malformed attribute in <{}> ({err})",
@@ -209,8 +208,7 @@ pub fn each_attribute(
             ))
         })?;
         let name = attribute.key.into_inner();
-        let earlier = seen[..count.min(8)].iter().chain(more.iter());
-        if earlier.clone().any(|&n| n == name) {
+        if seen[..count.min(8)].iter().chain(&more).any(|&n| n == name) {
             return Err(bad(format!(
                 "has the attribute `{}` twice in one <{}> (not well-formed XML)",
                 String::from_utf8_lossy(name),
@@ -222,7 +220,6 @@ pub fn each_attribute(
         } else {
             more.push(name);
         }
-        count += 1;
         if attribute.key.as_namespace_binding().is_some() {
             continue;
         }
