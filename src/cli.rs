@@ -24,7 +24,7 @@ pub struct Cli {
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Scan mesh files (.obj .gltf .glb .stl .ply .off) and report their topology.
+    /// Scan mesh files (.obj .gltf .glb .stl .ply .off .3mf) and report their topology.
     ///
     /// Exit code 0: no error-severity findings; 1: a mesh failed or a file could not be read;
     /// 2: the command or the config is wrong.

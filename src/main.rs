@@ -306,7 +306,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         lines.extend(finding_lines.into_iter().map(|(_, line)| line));
     } else {
         if sources.is_empty() && !args.quiet {
-            eprintln!("meshvet: no mesh files found (.obj .gltf .glb .stl .ply .off)");
+            eprintln!("meshvet: no mesh files found (.obj .gltf .glb .stl .ply .off .3mf)");
         }
         if !args.quiet {
             lines.push(summary.line(started.elapsed().as_secs_f64()));

@@ -159,7 +159,7 @@ pub fn scan_file_with(source: &Source, settings: &Settings, extras: Extras) -> V
     }
     let Some(format) = source.format else {
         return error(
-            "not a mesh file: meshvet reads .obj .gltf .glb .stl .ply .off - rename it if it is one",
+            "not a mesh file: meshvet reads .obj .gltf .glb .stl .ply .off .3mf - rename it if it is one",
             start,
         );
     };

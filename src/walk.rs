@@ -1,6 +1,6 @@
 //! The sorted list of files a scan reads. Folders are walked recursively (symlinks are not followed,
 //! so a link loop cannot trap the walk); a file named on the command line is taken alone. Only the
-//! mesh extensions count in folders (`.obj .gltf .glb .stl .ply .off`, any case); a file named
+//! mesh extensions count in folders (`.obj .gltf .glb .stl .ply .off .3mf`, any case); a file named
 //! explicitly is always listed, so a wrong extension becomes an `error` row rather than silence, and
 //! so does a named path that is not a regular file (a FIFO or device: reading it would block). In
 //! folders only regular files are listed.

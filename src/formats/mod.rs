@@ -1,4 +1,4 @@
-//! Format readers. One module per format; each turns bytes into [`Mesh`]es or a [`ReadError`] whose
+//! Format readers. One module per format (a folder for the formats of several files); each turns bytes into [`Mesh`]es or a [`ReadError`] whose
 //! message says what is wrong and what to do. No reader panics on bad input, none sizes an allocation
 //! from an unchecked header count, only regular files are read (a FIFO or device would block), and
 //! no file a model names is read outside the scanned tree ([`contain`]).
@@ -27,6 +27,8 @@ pub enum Format {
     Stl,
     Ply,
     Off,
+    /// 3D Manufacturing Format (a ZIP package of XML model parts).
+    ThreeMf,
 }
 
 impl Format {
@@ -40,6 +42,7 @@ impl Format {
             "stl" => Format::Stl,
             "ply" => Format::Ply,
             "off" => Format::Off,
+            "3mf" => Format::ThreeMf,
             _ => return None,
         })
     }
@@ -53,6 +56,7 @@ impl Format {
             Format::Stl => "stl",
             Format::Ply => "ply",
             Format::Off => "off",
+            Format::ThreeMf => "3mf",
         }
     }
 }
@@ -116,6 +120,7 @@ pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, 
         Format::Stl => stl::read(path, cx),
         Format::Ply => ply::read(path, cx),
         Format::Off => off::read(path, cx),
+        Format::ThreeMf => threemf::read(path, cx),
     }
 }
 
@@ -169,7 +174,8 @@ pub(crate) fn dependency(
     match format {
         Format::Obj => obj::library(name, location).ok(),
         Format::Gltf | Format::Glb => gltf::buffers::resolve(name, location).ok(),
-        Format::Stl | Format::Ply | Format::Off => None,
+        // A 3MF package is one file: its parts are inside it.
+        Format::Stl | Format::Ply | Format::Off | Format::ThreeMf => None,
     }
 }
 

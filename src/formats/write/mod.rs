@@ -14,6 +14,7 @@ mod obj;
 mod off;
 mod ply;
 mod stl;
+mod threemf;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -122,6 +123,7 @@ pub fn write_copy(
         Format::Ply => written.notes = ply::write(source, single()?, out, cx)?,
         Format::Off => off::write(source, single()?, out, cx)?,
         Format::Gltf | Format::Glb => written.files.extend(gltf::write(source, plans, out, cx)?),
+        Format::ThreeMf => threemf::write(source, plans, out, cx)?,
     }
     Ok(written)
 }
