@@ -1353,3 +1353,113 @@ fn the_corpus_agrees_with_lib3mf() {
     assert!(problems.is_empty(), "{problems:#?}");
     assert_eq!(refused_on_purpose.len(), REFUSED_ON_PURPOSE.len());
 }
+
+// ---------------------------------------------------------------------------------------------
+// The sample assets
+
+fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("sample_assets/print")
+        .join(name)
+}
+
+/// `plate.3mf`: a 20 mm cube (V 8, F 12, volume 20^3 = 8000) placed twice, a wedge (half a 20 mm
+/// cube cut along a diagonal: V 6, F 8, volume 20 * 20 / 2 * 20 = 4000) and a 20 mm box without its
+/// two top triangles (F 10, one hole of 4 edges). `bracket_pair.3mf`: an L bracket (an L of
+/// 30 x 5 plus 5 x 15 mm, 10 mm tall: V 12, F 4 + 4 + 12 = 20, volume (150 + 75) * 10 = 2250)
+/// placed twice by one assembly, the second copy mirrored in x.
+#[test]
+fn the_sample_fixtures_read_as_built() {
+    let root = sample("");
+    let facts = |name: &str| -> Vec<(String, usize, usize, Option<f64>, usize, Vec<String>, u32)> {
+        read(&sample(name), Format::ThreeMf, &cx(&root))
+            .unwrap()
+            .iter()
+            .map(|m| {
+                let a = analyse(m, &Options::default());
+                let holes = a.components.iter().map(|c| c.holes).sum();
+                (
+                    m.name.clone().unwrap(),
+                    a.vertices,
+                    a.faces,
+                    a.volume(),
+                    holes,
+                    m.notes.clone(),
+                    m.mirrored_instances,
+                )
+            })
+            .collect()
+    };
+    let notes = |n: &str| vec!["unit millimeter".to_owned(), n.to_owned()];
+    assert_eq!(
+        facts("plate.3mf"),
+        [
+            (
+                "cube".into(),
+                8,
+                12,
+                Some(8000.0),
+                0,
+                notes("2 placements"),
+                0
+            ),
+            (
+                "wedge".into(),
+                6,
+                8,
+                Some(4000.0),
+                0,
+                notes("1 placement"),
+                0
+            ),
+            ("open_box".into(), 8, 10, None, 1, notes("1 placement"), 0),
+        ]
+    );
+    assert_eq!(
+        facts("bracket_pair.3mf"),
+        [(
+            "bracket".into(),
+            12,
+            20,
+            Some(2250.0),
+            0,
+            notes("2 placements"),
+            1
+        )]
+    );
+}
+
+/// The plate's repaired copy keeps its thumbnail and slicer config byte for byte, closes the box
+/// (F 12, volume 8000) and leaves the other objects' text alone.
+#[test]
+fn the_sample_plate_is_repaired_in_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = sample("plate.3mf");
+    let meshes = read(&source, Format::ThreeMf, &cx(&sample(""))).unwrap();
+    let plans = plans(&meshes);
+    assert_eq!(
+        plans
+            .iter()
+            .map(|p| p.as_ref().map(Plan::summary))
+            .collect::<Vec<_>>(),
+        [None, None, Some("fill-holes:1(2 faces)".to_owned())]
+    );
+    let out = dir.path().join("plate.3mf");
+    write_repaired(&source, Format::ThreeMf, &plans, &out, &cx(&sample(""))).unwrap();
+    let (before, after) = (
+        entries(&std::fs::read(&source).unwrap()),
+        entries(&std::fs::read(&out).unwrap()),
+    );
+    assert_eq!(before.len(), after.len());
+    for ((name, a), (other, b)) in before.iter().zip(&after) {
+        assert_eq!(name, other);
+        if name != "3D/3dmodel.model" {
+            assert_eq!(a, b, "{name} changed");
+        }
+    }
+    let again = read(&out, Format::ThreeMf, &cx(dir.path())).unwrap();
+    assert_eq!(&again[..2], &meshes[..2]);
+    let a = analyse(&again[2], &Options::default());
+    assert_eq!((a.faces, a.border_edges, a.volume()), (12, 0, Some(8000.0)));
+    assert!(self::plans(&again).iter().all(Option::is_none));
+}
