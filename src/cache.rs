@@ -2244,4 +2244,22 @@ mod tests {
         glb.extend_from_slice(gltf);
         assert_eq!(dependencies(Format::Glb, &glb).len(), 2);
     }
+
+    /// A 3MF package is one file: its parts live inside it, so its key is its bytes alone, even
+    /// when a part's text looks like a file another format would name.
+    #[test]
+    fn a_3mf_package_has_no_dependencies() {
+        let text =
+            b"PK\x03\x04 mtllib a.mtl\n{\"buffers\":[{\"uri\":\"b.bin\"}]} p:path=\"/3D/x.model\"";
+        assert!(dependencies(Format::ThreeMf, text).is_empty());
+        // A file the name could mean is there (an OBJ would depend on it); a 3MF does not.
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.mtl"), "newmtl a\n").unwrap();
+        let location = Location::new(&dir.path().join("m.3mf"), dir.path()).unwrap();
+        assert!(crate::formats::dependency(Format::Obj, "a.mtl", &location).is_some());
+        assert_eq!(
+            crate::formats::dependency(Format::ThreeMf, "a.mtl", &location),
+            None
+        );
+    }
 }
