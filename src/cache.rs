@@ -2255,6 +2255,7 @@ mod tests {
         // A file the name could mean is there (an OBJ would depend on it); a 3MF does not.
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join("a.mtl"), "newmtl a\n").unwrap();
+        std::fs::write(dir.path().join("m.3mf"), text).unwrap();
         let location = Location::new(&dir.path().join("m.3mf"), dir.path()).unwrap();
         assert!(crate::formats::dependency(Format::Obj, "a.mtl", &location).is_some());
         assert_eq!(
