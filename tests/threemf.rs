@@ -915,6 +915,13 @@ fn bad_numbers_and_indices_are_refused() {
         "defines object 1 twice",
     );
     refused(
+        &package(&model(
+            &tet.replacen("<triangles>", "<triangles></triangles><triangles>", 1),
+            item,
+        )),
+        "more than one <triangles>",
+    );
+    refused(
         &package(&model_with("", &tet, item).replace("unit=\"millimeter\"", "unit=\"furlong\"")),
         "unit `furlong`",
     );

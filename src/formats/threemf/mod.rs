@@ -169,8 +169,13 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
     while next < parts.parts.len() {
         let model = &parts.parts[next].1;
         let from = format!("part {}", parts.names[next]);
-        let named: Vec<String> = model
-            .items
+        // Only the root part's build is printed; the others' items are not followed.
+        let items = if next == 0 {
+            model.items.as_slice()
+        } else {
+            &[]
+        };
+        let named: Vec<String> = items
             .iter()
             .chain(model.objects.iter().flat_map(|o| match &o.content {
                 Content::Components(c) => c.as_slice(),

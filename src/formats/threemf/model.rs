@@ -365,6 +365,17 @@ pub fn parse<R: BufRead>(
             (Some(Node::Mesh), true, b"vertices" | b"triangles") => {
                 each_attribute(e, resolver, &part, |_, _, _| Ok(()))?;
                 let m = mesh.as_mut().expect("a mesh is open");
+                let seen = if local == b"vertices" {
+                    &m.spans.vertices
+                } else {
+                    &m.spans.triangles
+                };
+                if seen.is_some() {
+                    return Err(xml.error(&format!(
+                        "gives a mesh more than one <{}> (a mesh has one of each): the file is damaged - re-export it",
+                        String::from_utf8_lossy(local)
+                    )));
+                }
                 let span = Some(xml.start..xml.reader.buffer_position());
                 if local == b"vertices" {
                     m.spans.vertices = span;
