@@ -1370,6 +1370,9 @@ fn sample(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// Name, vertices, faces, volume, holes, notes and mirrored placements of a mesh.
+type Facts = (String, usize, usize, Option<f64>, usize, Vec<String>, u32);
+
 /// `plate.3mf`: a 20 mm cube (V 8, F 12, volume 20^3 = 8000) placed twice, a wedge (half a 20 mm
 /// cube cut along a diagonal: V 6, F 8, volume 20 * 20 / 2 * 20 = 4000) and a 20 mm box without its
 /// two top triangles (F 10, one hole of 4 edges). `bracket_pair.3mf`: an L bracket (an L of
@@ -1378,7 +1381,7 @@ fn sample(name: &str) -> PathBuf {
 #[test]
 fn the_sample_fixtures_read_as_built() {
     let root = sample("");
-    let facts = |name: &str| -> Vec<(String, usize, usize, Option<f64>, usize, Vec<String>, u32)> {
+    let facts = |name: &str| -> Vec<Facts> {
         read(&sample(name), Format::ThreeMf, &cx(&root))
             .unwrap()
             .iter()

@@ -20,12 +20,11 @@ use std::io::BufRead;
 use std::ops::Range;
 
 use quick_xml::events::{BytesStart, Event};
-use quick_xml::name::{NamespaceResolver, QName, ResolveResult};
 use rustc_hash::FxHashMap;
 
 use super::super::{Limits, ReadError};
 use super::package::{self, Relationship};
-use super::xml::{each_attribute, namespace, Step, Xml};
+use super::xml::{Step, Xml};
 
 /// The 3MF core namespace.
 pub const CORE: &[u8] = b"http://schemas.microsoft.com/3dmanufacturing/core/2015/02";
@@ -241,12 +240,50 @@ pub fn parse<R: BufRead>(
     let mut open: Option<Open> = None;
     let mut mesh: Option<Box<MeshData>> = None;
     let mut components: Vec<Reference> = Vec::new();
+    // Whether the last event was a tag (so the source is between markup, see `Xml::empty_run`).
+    let mut after_tag = false;
     loop {
+        if after_tag {
+            match (stack.last(), mesh.as_mut()) {
+                (Some(Node::Vertices), Some(m)) => {
+                    xml.empty_run(b"vertex", CORE, |attributes| {
+                        let Some(p) = plain_vertex(attributes) else {
+                            return Ok(false);
+                        };
+                        totals.vertices += 1;
+                        if totals.vertices > settings.limits.max_triangles {
+                            return Err(over_limit(&part, "vertices", settings.limits));
+                        }
+                        m.positions.push(p);
+                        Ok(true)
+                    })?;
+                }
+                (Some(Node::Triangles), Some(m)) => {
+                    xml.empty_run(b"triangle", CORE, |attributes| {
+                        let Some((t, properties)) = plain_triangle(attributes, settings.keep)
+                        else {
+                            return Ok(false);
+                        };
+                        totals.triangles += 1;
+                        if totals.triangles > settings.limits.max_triangles {
+                            return Err(over_limit(&part, "triangles", settings.limits));
+                        }
+                        m.triangles.push(t);
+                        if settings.keep {
+                            m.properties.push(properties);
+                        }
+                        Ok(true)
+                    })?;
+                }
+                _ => {}
+            }
+        }
         let (step, event) = xml.next(&mut buf)?;
+        after_tag = matches!(step, Step::Start | Step::Empty | Step::End);
         let e = match (&step, &event) {
             (Step::Start | Step::Empty, Event::Start(e) | Event::Empty(e)) => e,
             (Step::End, _) => {
-                let at = xml.reader.buffer_position();
+                let at = xml.position();
                 match stack.pop() {
                     Some(Node::Vertices) => {
                         if let Some(m) = mesh.as_mut() {
@@ -283,14 +320,13 @@ pub fn parse<R: BufRead>(
             _ => continue,
         };
         let start = step == Step::Start;
-        let resolver = xml.reader.resolver();
-        let core = namespace(resolver, e) == Some(CORE);
+        let core = xml.namespace(e) == Some(CORE);
         let local = e.local_name().into_inner();
         let parent = stack.last().copied();
         // The hot paths first: a million-triangle part is almost all vertices and triangles.
         if core && parent == Some(Node::Vertices) && local == b"vertex" {
             let m = mesh.as_mut().expect("vertices are inside a mesh");
-            let p = vertex(e, resolver, &part, m.positions.len())?;
+            let p = vertex(e, &xml, m.positions.len())?;
             totals.vertices += 1;
             if totals.vertices > settings.limits.max_triangles {
                 return Err(over_limit(&part, "vertices", settings.limits));
@@ -303,7 +339,7 @@ pub fn parse<R: BufRead>(
         }
         if core && parent == Some(Node::Triangles) && local == b"triangle" {
             let m = mesh.as_mut().expect("triangles are inside a mesh");
-            let (t, properties) = triangle(e, resolver, &part, m.triangles.len(), settings.keep)?;
+            let (t, properties) = triangle(e, &xml, m.triangles.len(), settings.keep)?;
             totals.triangles += 1;
             if totals.triangles > settings.limits.max_triangles {
                 return Err(over_limit(&part, "triangles", settings.limits));
@@ -319,7 +355,7 @@ pub fn parse<R: BufRead>(
         }
         let node = match (parent, core, local) {
             (None, true, b"model") => {
-                read_model(e, resolver, &part, &mut model)?;
+                read_model(e, &xml, &mut model)?;
                 Some(Node::Model)
             }
             (None, _, _) => {
@@ -337,7 +373,7 @@ pub fn parse<R: BufRead>(
                 Some(Node::Build)
             }
             (Some(Node::Resources), true, b"object") => {
-                open = Some(read_object(e, resolver, &part)?);
+                open = Some(read_object(e, &xml)?);
                 Some(Node::Object)
             }
             (Some(Node::Object), true, b"mesh" | b"components") => {
@@ -348,7 +384,6 @@ pub fn parse<R: BufRead>(
                         o.id
                     )));
                 }
-                each_attribute(e, resolver, &part, |_, _, _| Ok(()))?;
                 if local == b"mesh" {
                     mesh = Some(Box::new(MeshData {
                         spans: Spans {
@@ -363,7 +398,6 @@ pub fn parse<R: BufRead>(
                 }
             }
             (Some(Node::Mesh), true, b"vertices" | b"triangles") => {
-                each_attribute(e, resolver, &part, |_, _, _| Ok(()))?;
                 let m = mesh.as_mut().expect("a mesh is open");
                 let seen = if local == b"vertices" {
                     &m.spans.vertices
@@ -376,7 +410,7 @@ pub fn parse<R: BufRead>(
                         String::from_utf8_lossy(local)
                     )));
                 }
-                let span = Some(xml.start..xml.reader.buffer_position());
+                let span = Some(xml.start..xml.position());
                 if local == b"vertices" {
                     m.spans.vertices = span;
                     Some(Node::Vertices)
@@ -386,28 +420,25 @@ pub fn parse<R: BufRead>(
                 }
             }
             (Some(Node::Components), true, b"component") => {
-                components.push(reference(e, resolver, &part, settings.key, "a component")?);
+                components.push(reference(e, &xml, settings.key, "a component")?);
                 None
             }
             (Some(Node::Build), true, b"item") => {
-                model.items.push(reference(e, resolver, &part, settings.key, "a build item")?);
+                model.items.push(reference(e, &xml, settings.key, "a build item")?);
                 None
             }
             (Some(Node::Mesh), _, _) => {
                 let m = mesh.as_mut().expect("a mesh is open");
-                let ns = namespace(resolver, e);
+                let ns = xml.namespace(e);
                 m.extras.push(extra_name(ns, local));
-                each_attribute(e, resolver, &part, |_, _, _| Ok(()))?;
                 None
             }
             (Some(Node::Vertices | Node::Triangles), true, _) => {
                 mesh.as_mut().expect("a mesh is open").unknown += 1;
-                each_attribute(e, resolver, &part, |_, _, _| Ok(()))?;
                 None
             }
             _ => {
                 // Materials, metadata, extension resources and attributes: read past.
-                each_attribute(e, resolver, &part, |_, _, _| Ok(()))?;
                 None
             }
         };
@@ -422,7 +453,7 @@ pub fn parse<R: BufRead>(
                     }
                     Node::Mesh => {
                         let mut m = mesh.take().expect("a mesh is open");
-                        m.spans.mesh.end = xml.reader.buffer_position();
+                        m.spans.mesh.end = xml.position();
                         open.as_mut().expect("an object is open").content = Content::Mesh(m);
                     }
                     Node::Components => {
@@ -495,14 +526,14 @@ fn check_indices(m: &MeshData, id: u32, part: &str) -> Result<(), ReadError> {
     Ok(())
 }
 
-fn read_model(
+fn read_model<R: BufRead>(
     e: &BytesStart,
-    resolver: &NamespaceResolver,
-    part: &str,
+    xml: &Xml<R>,
     model: &mut Model,
 ) -> Result<(), ReadError> {
+    let part = xml.part.as_str();
     let mut required: Vec<Vec<u8>> = Vec::new();
-    each_attribute(e, resolver, part, |ns, local, value| {
+    xml.each_attribute(e, |ns, local, value| {
         if ns.is_some() {
             return Ok(());
         }
@@ -529,12 +560,9 @@ fn read_model(
         Ok(())
     })?;
     for prefix in required {
-        let mut name = prefix.clone();
-        name.extend_from_slice(b":x");
         let text = String::from_utf8_lossy(&prefix);
-        match resolver.resolve_attribute(QName(&name)).0 {
-            ResolveResult::Bound(ns) => {
-                let ns = ns.into_inner();
+        match xml.prefix(&prefix) {
+            Some(ns) => {
                 if ns != CORE && !READ_PAST.contains(&ns) {
                     return Err(ReadError::new(format!(
                         "part {part} requires the 3MF extension {} (prefix `{text}`), which meshvet does not read: the meshes it describes may not be what the file means - check it with a tool that supports the extension",
@@ -552,15 +580,12 @@ fn read_model(
     Ok(())
 }
 
-fn read_object(
-    e: &BytesStart,
-    resolver: &NamespaceResolver,
-    part: &str,
-) -> Result<Open, ReadError> {
+fn read_object<R: BufRead>(e: &BytesStart, xml: &Xml<R>) -> Result<Open, ReadError> {
+    let part = xml.part.as_str();
     let mut id = None;
     let mut name = None;
     let mut kind = Kind::Model;
-    each_attribute(e, resolver, part, |ns, local, value| {
+    xml.each_attribute(e, |ns, local, value| {
         if ns.is_some() {
             return Ok(());
         }
@@ -603,17 +628,17 @@ fn read_object(
 }
 
 /// A build item or component: `objectid`, `transform`, `p:path`.
-fn reference(
+fn reference<R: BufRead>(
     e: &BytesStart,
-    resolver: &NamespaceResolver,
-    part: &str,
+    xml: &Xml<R>,
     key: &str,
     what: &str,
 ) -> Result<Reference, ReadError> {
+    let part = xml.part.as_str();
     let mut object = None;
     let mut path = None;
     let mut sign = Sign::Positive;
-    each_attribute(e, resolver, part, |ns, local, value| {
+    xml.each_attribute(e, |ns, local, value| {
         match (ns, local) {
             (None, b"objectid") => {
                 object = Some(index(value).ok_or_else(|| {
@@ -713,15 +738,55 @@ pub fn index(text: &[u8]) -> Option<u32> {
     Some(n)
 }
 
-fn vertex(
-    e: &BytesStart,
-    resolver: &NamespaceResolver,
-    part: &str,
-    k: usize,
-) -> Result<[f64; 3], ReadError> {
+/// A vertex from the plain attributes of a tag, if they hold three numbers.
+fn plain_vertex(attributes: &[(&[u8], &[u8])]) -> Option<[f64; 3]> {
     let mut p = [0.0f64; 3];
     let mut got = 0u8;
-    each_attribute(e, resolver, part, |ns, local, value| {
+    for &(name, value) in attributes {
+        let axis = match name {
+            b"x" => 0,
+            b"y" => 1,
+            b"z" => 2,
+            _ => continue,
+        };
+        p[axis] = number(value)?;
+        got |= 1 << axis;
+    }
+    (got == 0b111).then_some(p)
+}
+
+/// A triangle (and its properties when `keep`) from the plain attributes of a tag, if its indices
+/// are whole numbers.
+fn plain_triangle(attributes: &[(&[u8], &[u8])], keep: bool) -> Option<([u32; 3], [u32; 4])> {
+    let mut v = [0u32; 3];
+    let mut properties = [NONE; 4];
+    let mut got = 0u8;
+    for &(name, value) in attributes {
+        match name {
+            b"v1" | b"v2" | b"v3" => {
+                let k = usize::from(name[1] - b'1');
+                v[k] = index(value)?;
+                got |= 1 << k;
+            }
+            b"pid" | b"p1" | b"p2" | b"p3" if keep => {
+                let k = if name == b"pid" {
+                    0
+                } else {
+                    usize::from(name[1] - b'0')
+                };
+                properties[k] = index(value)?;
+            }
+            _ => {}
+        }
+    }
+    (got == 0b111).then_some((v, properties))
+}
+
+fn vertex<R: BufRead>(e: &BytesStart, xml: &Xml<R>, k: usize) -> Result<[f64; 3], ReadError> {
+    let part = xml.part.as_str();
+    let mut p = [0.0f64; 3];
+    let mut got = 0u8;
+    xml.each_attribute(e, |ns, local, value| {
         let axis = match (ns, local) {
             (None, b"x") => 0,
             (None, b"y") => 1,
@@ -750,17 +815,17 @@ fn vertex(
     Ok(p)
 }
 
-fn triangle(
+fn triangle<R: BufRead>(
     e: &BytesStart,
-    resolver: &NamespaceResolver,
-    part: &str,
+    xml: &Xml<R>,
     t: usize,
     keep: bool,
 ) -> Result<([u32; 3], [u32; 4]), ReadError> {
+    let part = xml.part.as_str();
     let mut v = [0u32; 3];
     let mut properties = [NONE; 4];
     let mut got = 0u8;
-    each_attribute(e, resolver, part, |ns, local, value| {
+    xml.each_attribute(e, |ns, local, value| {
         let (slot, is_vertex) = match (ns, local) {
             (None, b"v1") => (0, true),
             (None, b"v2") => (1, true),
@@ -825,12 +890,11 @@ pub fn relationships(
         let (Event::Start(e) | Event::Empty(e)) = &event else {
             continue;
         };
-        let resolver = xml.reader.resolver();
-        let ns = namespace(resolver, e);
+        let ns = xml.namespace(e);
         let is_relationship =
             e.local_name().as_ref() == b"Relationship" && ns.is_none_or(|ns| ns == RELATIONSHIPS);
         let (mut kind, mut target, mut external) = (String::new(), None, false);
-        each_attribute(e, resolver, &part, |ns, local, value| {
+        xml.each_attribute(e, |ns, local, value| {
             if ns.is_none() && is_relationship {
                 let text = String::from_utf8_lossy(value);
                 match local {
@@ -878,7 +942,7 @@ pub fn keystore(bytes: &[u8], part: &str) -> Result<Vec<String>, ReadError> {
             continue;
         };
         let data = e.local_name().as_ref() == b"resourcedata";
-        each_attribute(e, xml.reader.resolver(), &part, |ns, local, value| {
+        xml.each_attribute(e, |ns, local, value| {
             if data && ns.is_none() && local == b"path" {
                 out.push(package::key(&String::from_utf8_lossy(value)));
             }
@@ -955,6 +1019,93 @@ mod tests {
         );
         assert_eq!(model.items[0].sign, Sign::Positive);
         assert_eq!(model.items[1].sign, Sign::Zero);
+    }
+
+    /// The run of plain tags read past the XML reader gives what the XML reader gives: the same
+    /// mesh written plainly (`x="1"`, taken by the run) and with spaces around `=` (which only the
+    /// XML reader takes), over 20,000 vertices, so that tags also straddle the 64 KiB buffer
+    /// boundaries of a real read.
+    #[test]
+    fn plain_runs_read_as_the_xml_reader_reads() {
+        let mut plain = String::new();
+        let mut spaced = String::new();
+        let n = 20_000u32;
+        for k in 0..n {
+            let (x, y, z) = (
+                f64::from(k) * 0.1,
+                -f64::from(k) / 3.0,
+                1e-3 * f64::from(k % 7),
+            );
+            plain.push_str(&format!("<vertex x=\"{x}\" y='{y}' z=\"{z}\"/>\n"));
+            spaced.push_str(&format!("<vertex x = \"{x}\" y='{y}' z=\"{z}\" />\n"));
+        }
+        let mut plain_t = String::new();
+        let mut spaced_t = String::new();
+        for k in 0..n - 2 {
+            let (a, b, c) = (k, k + 1, k + 2);
+            let p = if k % 3 == 0 {
+                format!(" pid=\"2\" p1=\"{a}\"")
+            } else {
+                String::new()
+            };
+            plain_t.push_str(&format!(
+                "\t<triangle v1=\"{a}\" v2=\"{b}\" v3=\"{c}\"{p}/>\r\n"
+            ));
+            spaced_t.push_str(&format!(
+                "\t<triangle v1=\"{a}\" v2 =\"{b}\" v3=\"{c}\"{p}/>\r\n"
+            ));
+        }
+        let doc = |v: &str, t: &str| {
+            format!("{HEAD}<resources><object id=\"1\"><mesh><vertices>{v}</vertices><triangles>{t}</triangles></mesh></object></resources><build><item objectid=\"1\"/></build></model>")
+        };
+        let limits = Limits::default();
+        let settings = Settings {
+            key: "3d/3dmodel.model",
+            name: "/3D/3dmodel.model",
+            root: true,
+            keep: true,
+            limits: &limits,
+        };
+        let parse_buffered = |text: &str| {
+            let source = std::io::BufReader::with_capacity(1 << 16, text.as_bytes());
+            parse(source, &settings, &mut Totals::default()).unwrap()
+        };
+        let a = parse_buffered(&doc(&plain, &plain_t));
+        let b = parse_buffered(&doc(&spaced, &spaced_t));
+        let (Content::Mesh(a), Content::Mesh(b)) = (&a.objects[0].content, &b.objects[0].content)
+        else {
+            panic!("no meshes");
+        };
+        assert_eq!(a.positions.len(), n as usize);
+        assert_eq!(a.positions, b.positions);
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.properties, b.properties);
+        assert_eq!(a.properties[3], [2, 3, NONE, NONE]);
+        // The spans still point at the elements after a run.
+        let text = doc(&plain, &plain_t);
+        let t = a.spans.triangles.clone().unwrap();
+        assert!(text[t.start as usize..t.end as usize].starts_with("<triangles>"));
+        assert!(text[t.start as usize..t.end as usize].ends_with("</triangles>"));
+        // Tags a run leaves to the XML reader are still checked by it.
+        for (tag, words) in [
+            ("<vertex x=\"1\" x=\"2\" y=\"0\" z=\"0\"/>", "twice"),
+            ("<vertex x=\"1\" y=\"2\"/>", "no z coordinate"),
+            ("<vertex x=\"a\" y=\"2\" z=\"3\"/>", "not a number"),
+            ("<vertex x=\"1\"y=\"2\" z=\"3\"/>", "apart"),
+            ("<vertex q:x=\"1\" y=\"2\" z=\"3\"/>", "prefix `q:`"),
+        ] {
+            let e = read(&doc(&format!("{plain}{tag}"), &plain_t)).unwrap_err();
+            assert!(e.0.contains(words), "{tag}: {e}");
+        }
+        let inf = read(&doc(
+            &format!("{plain}<vertex x=\"1e999\" y=\"0\" z=\"0\"></vertex>"),
+            &plain_t,
+        ))
+        .unwrap();
+        let Content::Mesh(m) = &inf.objects[0].content else {
+            panic!()
+        };
+        assert!(m.positions[n as usize][0].is_infinite());
     }
 
     #[test]
