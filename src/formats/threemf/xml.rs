@@ -160,13 +160,14 @@ impl<R: BufRead> Xml<R> {
                     return Ok(()); // the tag goes on past the buffer
                 };
                 let tag = &tag[..=end];
-                let Some(inner) = tag
-                    .strip_prefix(b"<")
-                    .and_then(|t| t.strip_prefix(name))
-                    .and_then(|t| t.strip_suffix(b"/>"))
-                else {
+                let named = tag.len() >= name.len() + 3
+                    && tag[0] == b'<'
+                    && same(&tag[1..=name.len()], name)
+                    && tag.ends_with(b"/>");
+                if !named {
                     return Ok(());
-                };
+                }
+                let inner = &tag[1 + name.len()..tag.len() - 2];
                 let Some(count) = plain_attributes(inner, &mut attributes) else {
                     return Ok(());
                 };
@@ -490,13 +491,20 @@ fn plain_attributes<'a>(
         if value.iter().any(|&b| matches!(b, b'&' | b'<')) {
             return None;
         }
-        if name == b"xmlns" || out[..count].iter().any(|(n, _)| *n == name) {
+        if same(name, b"xmlns") || out[..count].iter().any(|(n, _)| same(n, name)) {
             return None;
         }
         out[count] = (name, value);
         count += 1;
         at = value_start + len + 1;
     }
+}
+
+/// Whether two short names are equal (an inline loop: a library compare call costs more than
+/// the compare for names of a few bytes).
+#[inline]
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x == y)
 }
 
 /// An attribute value with its references replaced: the five predefined entities and character
