@@ -149,9 +149,7 @@ fn read_package(path: &Path, cx: &ReadContext, keep: bool) -> Result<Read, ReadE
     };
     let mut encrypted = Vec::new();
     for keystore in relationships.iter().filter(|r| r.kind == KEYSTORE) {
-        if let Some(bytes) = package.read(&keystore.target)? {
-            encrypted.extend(model::keystore(&bytes, &package.name(&keystore.target))?);
-        }
+        encrypted.extend(package.keystore(&keystore.target)?);
     }
     let mut parts = Parts {
         package,

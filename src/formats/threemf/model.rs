@@ -873,8 +873,8 @@ fn extra_name(ns: Option<&[u8]>, local: &[u8]) -> String {
 
 /// The relationships of the `.rels` part named `part` (bytes), their targets resolved against
 /// `source` (a key); an external target or one outside the package is refused.
-pub fn relationships(
-    bytes: &[u8],
+pub fn relationships<R: BufRead>(
+    bytes: R,
     part: &str,
     source: &str,
 ) -> Result<Vec<Relationship>, ReadError> {
@@ -928,7 +928,7 @@ pub fn relationships(
 }
 
 /// The parts a secure-content keystore lists as encrypted (its `resourcedata` paths, as keys).
-pub fn keystore(bytes: &[u8], part: &str) -> Result<Vec<String>, ReadError> {
+pub fn keystore<R: BufRead>(bytes: R, part: &str) -> Result<Vec<String>, ReadError> {
     let part = part.to_owned();
     let mut xml = Xml::new(bytes, &part);
     let mut buf = Vec::new();
@@ -1199,7 +1199,7 @@ mod tests {
     fn relationships_resolve_and_refuse_outside_targets() {
         let rels = br#"<?xml version="1.0"?><Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="r0" Type="T"/><Relationship Target="thumb.png" Id="r1" Type="U"/></Relationships>"#;
         assert_eq!(
-            relationships(rels, "/_rels/.rels", "").unwrap(),
+            relationships(&rels[..], "/_rels/.rels", "").unwrap(),
             [
                 Relationship {
                     kind: "T".into(),
@@ -1212,7 +1212,7 @@ mod tests {
             ]
         );
         let external = br#"<Relationships><Relationship Target="x.model" TargetMode="External" Type="T"/></Relationships>"#;
-        let e = relationships(external, "/_rels/.rels", "").unwrap_err();
+        let e = relationships(&external[..], "/_rels/.rels", "").unwrap_err();
         assert!(e.0.contains("External"), "{e}");
     }
 }

@@ -91,6 +91,15 @@ impl Package {
         self.parts.contains_key(key)
     }
 
+    /// The parts a secure-content keystore part lists as encrypted (streamed, like every part).
+    pub fn keystore(&mut self, key: &str) -> Result<Vec<String>, ReadError> {
+        let name = self.name(key);
+        let Some(reader) = self.open_part(key)? else {
+            return Ok(Vec::new());
+        };
+        super::model::keystore(BufReader::new(reader), &name)
+    }
+
     /// The bytes of a part, inflated within the budget; `None` if there is no such part.
     pub fn read(&mut self, part: &str) -> Result<Option<Vec<u8>>, ReadError> {
         let Some(mut reader) = self.open_part(part)? else {
@@ -166,10 +175,11 @@ impl Package {
         rels: &str,
         source: &str,
     ) -> Result<Vec<Relationship>, ReadError> {
-        let Some(bytes) = self.read(rels)? else {
+        let name = self.name(rels);
+        let Some(reader) = self.open_part(rels)? else {
             return Ok(Vec::new());
         };
-        super::model::relationships(&bytes, &self.name(rels), source)
+        super::model::relationships(BufReader::new(reader), &name, source)
     }
 
     /// The key of the `.rels` part of `part` (`3d/3dmodel.model` -> `3d/_rels/3dmodel.model.rels`).

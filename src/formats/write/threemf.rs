@@ -78,7 +78,7 @@ fn write_unguarded(
             let what = || format!("object {} of {}", object.id, read.names[p]);
             if let Some(extra) = data.extras.first() {
                 return Err(WriteError::new(format!(
-                    "{} also holds {extra}, which numbers the mesh's vertices or triangles; a repair renumbers them, so meshvet does not rewrite this mesh",
+                    "{} also holds {extra}, which numbers the mesh's vertices or triangles; a repair renumbers them, so a mesh with one cannot be written yet",
                     what()
                 )));
             }
