@@ -10,8 +10,9 @@
 //! whole number or names a vertex the mesh does not have, a transform that is not twelve finite
 //! numbers, and a reference to another part that lies outside the package. Vertex coordinates
 //! that are numbers but not finite (`INF`, `NaN`) are kept: the analysis counts them as invalid
-//! vertices, as it does for every format. Elements of the core namespace that the specification
-//! does not have are read past and counted in a note.
+//! vertices, as it does for every format. Elements the reader does not know are read past (their
+//! tags still checked); inside `<vertices>` and `<triangles>` they are counted in a note, and what
+//! else a `<mesh>` holds (a beam lattice, triangle sets) is named in one.
 //!
 //! Also here: the two small parts of the package that are XML too, relationships (`.rels`) and
 //! the secure-content keystore.
