@@ -1,4 +1,4 @@
-//! meshvet vets triangle meshes in bulk: it reads OBJ, glTF/GLB, STL, PLY and OFF files, builds a
+//! meshvet vets triangle meshes in bulk: it reads OBJ, glTF/GLB, STL, PLY, OFF and 3MF files, builds a
 //! Corner Table for each mesh and reports its topology (holes, non-manifold edges and vertices,
 //! orientation, shells, cavities, genus). The library never prints; the binary owns the terminal.
 

@@ -196,8 +196,8 @@ impl Rule {
             },
             Rule::MirroredInstance => &Doc {
                 name: "mirrored-instance",
-                summary: "a glTF node instances the mesh with a mirroring transform, so its winding flips on screen",
-                meaning: "A node with a mirroring (negative-determinant) transform flips the mesh's winding on screen unless the engine compensates.",
+                summary: "a glTF node or 3MF placement uses the mesh with a mirroring transform, so its winding flips",
+                meaning: "A placement with a mirroring (negative-determinant) transform flips the mesh's winding on screen or on the print bed unless the engine or slicer compensates.",
                 repair: "Apply the mirroring to the geometry when exporting, or check that the engine handles negative scale.",
                 default: Severity::Warning,
                 one: "mirrored instance",

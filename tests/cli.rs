@@ -841,8 +841,9 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
 
 /// The README's scan: every sample asset outside `rules/` (whose fixtures `tests/rules.rs` checks)
 /// gives what it was made to show. Clean ones in every format pass; the others carry the defect
-/// they were built with: an open shield under a mirrored node, a hollow block whose void faces
-/// out, two boxes sharing an edge, an open vase (top and bottom) and an open wall patch.
+/// they were built with: an open shield under a mirrored node, a bracket placed twice by an
+/// assembly, once mirrored, a hollow block whose void faces out, a print plate's box without its
+/// top (one hole), two boxes sharing an edge, an open vase (top and bottom) and an open wall patch.
 #[test]
 fn the_sample_assets_show_what_they_were_made_to_show() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -872,8 +873,17 @@ fn the_sample_assets_show_what_they_were_made_to_show() {
             "warn",
             "hole:1;mirrored-instance:1",
         ],
+        [
+            "print/bracket_pair.3mf",
+            "bracket",
+            "warn",
+            "mirrored-instance:1",
+        ],
         ["print/hex_bolt_head.off", "", "pass", ""],
         ["print/hollow_block.obj", "", "fail", "inside-out-shell:1"],
+        ["print/plate.3mf", "cube", "pass", ""],
+        ["print/plate.3mf", "open_box", "warn", "hole:1"],
+        ["print/plate.3mf", "wedge", "pass", ""],
         ["print/ring_bracket.stl", "", "pass", ""],
         [
             "print/twin_boxes.stl",

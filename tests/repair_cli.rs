@@ -426,7 +426,7 @@ fn repaired_copies_of_the_samples_are_proved_by_rescanning_them() {
     let formats: BTreeSet<&str> = repaired.iter().map(|r| r["format"].as_str()).collect();
     assert_eq!(
         formats,
-        BTreeSet::from(["glb", "gltf", "obj", "off", "ply", "stl"]),
+        BTreeSet::from(["3mf", "glb", "gltf", "obj", "off", "ply", "stl"]),
         "formats with a repaired copy"
     );
 

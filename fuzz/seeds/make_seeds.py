@@ -8,6 +8,8 @@ import base64
 import json
 import os
 import struct
+import zipfile
+import io
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -141,5 +143,52 @@ def glb():
     put("glb", "tet.glb", struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
 
 
+def package(parts, method):
+    """A ZIP of (name, text) parts with fixed dates, so the seeds do not change between runs."""
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for name, text in parts:
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = method
+            z.writestr(info, text)
+    return out.getvalue()
+
+
+CORE = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
+PROD = "http://schemas.microsoft.com/3dmanufacturing/production/2015/06"
+RELS = ('<?xml version="1.0" encoding="UTF-8"?><Relationships xmlns="http://schemas.openxmlformats.org/'
+        'package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="rel0" '
+        'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>')
+
+
+def mesh_3mf(oid, name, points, triangles, props=False):
+    v = "".join(f'<vertex x="{x}" y="{y}" z="{z}"/>' for x, y, z in points)
+    t = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"' + (f' pid="9" p1="{a}" p2="{b}" p3="{c}"' if props else "")
+                + "/>" for a, b, c in triangles)
+    return f'<object id="{oid}" name="{name}"><mesh><vertices>{v}</vertices><triangles>{t}</triangles></mesh></object>'
+
+
+def threemf():
+    model = (f'<?xml version="1.0" encoding="UTF-8"?><model unit="millimeter" xmlns="{CORE}"><resources>'
+             + mesh_3mf(1, "tet", TET_P, TET_T) + '</resources><build><item objectid="1"/></build></model>')
+    put("3mf", "tet_stored.3mf", package([("_rels/.rels", RELS), ("3D/3dmodel.model", model)], zipfile.ZIP_STORED))
+    put("3mf", "tet_deflated.3mf", package([("_rels/.rels", RELS), ("3D/3dmodel.model", model)], zipfile.ZIP_DEFLATED))
+    # An assembly: an open tetrahedron (a hole to fill) with colours per corner, placed by two
+    # components (one mirrored) from a second model part, and a flipped triangle to orient.
+    open_tet = [TET_T[0], (TET_T[1][0], TET_T[1][2], TET_T[1][1]), TET_T[2]]
+    part = (f'<?xml version="1.0" encoding="UTF-8"?><model unit="millimeter" xmlns="{CORE}"><resources>'
+            f'<m:colorgroup xmlns:m="http://schemas.microsoft.com/3dmanufacturing/material/2015/02" id="9">'
+            '<m:color color="#FF0000"/><m:color color="#00FF00"/><m:color color="#0000FF"/><m:color color="#FFFFFF"/>'
+            '</m:colorgroup>' + mesh_3mf(1, "open", TET_P, open_tet, props=True) + '</resources><build/></model>')
+    root = (f'<?xml version="1.0" encoding="UTF-8"?><model unit="inch" xmlns="{CORE}" xmlns:p="{PROD}" '
+            'requiredextensions="p"><resources><object id="2" name="pair"><components>'
+            '<component objectid="1" p:path="/3D/part.model"/>'
+            '<component objectid="1" p:path="/3D/part.model" transform="-1 0 0 0 1 0 0 0 1 2 0 0"/>'
+            '</components></object></resources><build><item objectid="2"/></build></model>')
+    put("3mf", "assembly.3mf", package([("_rels/.rels", RELS), ("3D/3dmodel.model", root),
+                                        ("3D/part.model", part), ("Metadata/notes.txt", "kept as it is")],
+                                       zipfile.ZIP_STORED))
+
+
 if __name__ == "__main__":
-    obj(); stl(); ply(); off(); gltf(); glb()
+    obj(); stl(); ply(); off(); gltf(); glb(); threemf()

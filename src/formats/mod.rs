@@ -1,4 +1,4 @@
-//! Format readers. One module per format; each turns bytes into [`Mesh`]es or a [`ReadError`] whose
+//! Format readers. One module per format (a folder for the formats of several files); each turns bytes into [`Mesh`]es or a [`ReadError`] whose
 //! message says what is wrong and what to do. No reader panics on bad input, none sizes an allocation
 //! from an unchecked header count, only regular files are read (a FIFO or device would block), and
 //! no file a model names is read outside the scanned tree (`contain`).
@@ -14,6 +14,7 @@ pub(crate) mod obj;
 pub(crate) mod off;
 pub(crate) mod ply;
 mod stl;
+pub(crate) mod threemf;
 pub mod write;
 
 /// The file formats meshvet reads. Everything else meshvet knows of a format is its line of
@@ -26,6 +27,8 @@ pub enum Format {
     Stl,
     Ply,
     Off,
+    /// 3D Manufacturing Format (a ZIP package of XML model parts).
+    ThreeMf,
 }
 
 /// One format: how it is named, found, read and written, and which other files its files name.
@@ -60,7 +63,7 @@ pub(crate) struct SideFiles {
 
 /// Every format, in [`Format`] order. Adding a format is a variant above, a reader and a writer
 /// module, and one line here.
-pub(crate) const FORMATS: [Entry; 6] = [
+pub(crate) const FORMATS: [Entry; 7] = [
     Entry {
         format: Format::Obj,
         name: "obj",
@@ -113,6 +116,16 @@ pub(crate) const FORMATS: [Entry; 6] = [
         read: off::read,
         read_retaining: None,
         write: write::off::write,
+        side_files: None,
+    },
+    Entry {
+        format: Format::ThreeMf,
+        name: "3mf",
+        extensions: &["3mf"],
+        read: threemf::read,
+        read_retaining: None,
+        write: write::threemf::write,
+        // A package is one file: its parts are inside it.
         side_files: None,
     },
 ];
@@ -340,7 +353,10 @@ mod tests {
                 Some(entry.format)
             );
         }
-        assert_eq!(Format::extension_list(), ".obj .gltf .glb .stl .ply .off");
+        assert_eq!(
+            Format::extension_list(),
+            ".obj .gltf .glb .stl .ply .off .3mf"
+        );
         assert_eq!(Format::of_path(Path::new("a.txt")), None);
     }
 
@@ -360,5 +376,21 @@ mod tests {
         glb.extend_from_slice(b"JSON");
         glb.extend_from_slice(gltf);
         assert_eq!(side_file_names(Format::Glb, &glb).len(), 2);
+    }
+
+    /// A 3MF package is one file: its parts live inside it, so its cache key is its bytes alone,
+    /// even when a part's text looks like a file another format would name.
+    #[test]
+    fn a_3mf_package_names_no_side_files() {
+        let text =
+            b"PK\x03\x04 mtllib a.mtl\n{\"buffers\":[{\"uri\":\"b.bin\"}]} p:path=\"/3D/x.model\"";
+        assert!(side_file_names(Format::ThreeMf, text).is_empty());
+        // A file the name could mean is there (an OBJ would depend on it); a 3MF does not.
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.mtl"), "newmtl a\n").unwrap();
+        std::fs::write(dir.path().join("m.3mf"), text).unwrap();
+        let location = contain::Location::new(&dir.path().join("m.3mf"), dir.path()).unwrap();
+        assert!(dependency(Format::Obj, "a.mtl", &location).is_some());
+        assert_eq!(dependency(Format::ThreeMf, "a.mtl", &location), None);
     }
 }

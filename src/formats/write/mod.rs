@@ -14,6 +14,7 @@ pub(super) mod obj;
 pub(super) mod off;
 pub(super) mod ply;
 pub(super) mod stl;
+pub(super) mod threemf;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};

@@ -1,0 +1,303 @@
+//! Repaired 3MF. The copy is the source package with only the `<vertices>` and `<triangles>` of the
+//! repaired objects rewritten: every other entry of the ZIP (thumbnails, `Metadata/`, slicer
+//! configurations, textures, other model parts) is copied as its stored bytes, in the same order and
+//! with the same names, and inside a rewritten model part every byte outside those two elements
+//! (the XML declaration, materials, other objects, the build, the `<mesh>` tag itself) is kept.
+//!
+//! A triangle keeps its properties: its `pid`, and the `p1`..`p3` of its corners follow the corners,
+//! so a flipped triangle swaps `p2` and `p3` along with `v2` and `v3` (a triangle with `p1` alone
+//! keeps `p1` alone). A triangle that fills a hole takes the `pid` and `p1` of the triangle beside
+//! it (its `near` triangle), or none. A vertex the repair adds (one copy per extra fan of a split
+//! vertex) is written like the others: 3MF vertices carry nothing but their position.
+//!
+//! A mesh whose other children number its vertices or triangles (a beam lattice, triangle sets) is
+//! not rewritten: the repair renumbers both, and those references would point elsewhere.
+
+use std::io::{Cursor, Write as _};
+use std::path::Path;
+
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, ZipWriter};
+
+use super::{push_int, push_number, renumber, write_atomic, Job, WriteError, Written};
+use crate::formats::threemf::model::{Content, MeshData, NONE};
+use crate::formats::threemf::package::Package;
+use crate::formats::threemf::read_full;
+use crate::formats::ReadContext;
+use crate::mesh::Mesh;
+use crate::repair::Plan;
+
+/// Writes the copy: the package with the repaired meshes' `<mesh>` text replaced, every other
+/// byte of every part kept.
+pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
+    let (source, plans, out, cx) = (job.source, job.plans, job.out, job.cx);
+    crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
+        Err(WriteError::new(format!(
+            "the 3MF writer crashed on this file ({panic}): please report it"
+        )))
+    })?;
+    Ok(job.written(Vec::new(), Vec::new()))
+}
+
+/// One mesh to rewrite: its two byte ranges in its part and their new text.
+struct Splice {
+    at: std::ops::Range<u64>,
+    text: String,
+}
+
+fn write_unguarded(
+    source: &Path,
+    plans: &[Option<Plan>],
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<(), WriteError> {
+    let read = read_full(source, cx)?;
+    if plans.len() != read.meshes.len() {
+        return Err(WriteError::new(format!(
+            "the file has {} meshes but {} plans were given",
+            read.meshes.len(),
+            plans.len()
+        )));
+    }
+    let mut package = Package::open(source, &cx.limits)?;
+    // Per part: its new bytes.
+    let mut rewritten: Vec<(String, Vec<u8>)> = Vec::new();
+    for (p, (key, model)) in read.parts.iter().enumerate() {
+        let mut splices: Vec<Splice> = Vec::new();
+        for (m, plan) in plans.iter().enumerate() {
+            let Some(plan) = plan else { continue };
+            let (part, o) = read.sources[m];
+            if part != p {
+                continue;
+            }
+            let object = &model.objects[o];
+            let Content::Mesh(data) = &object.content else {
+                continue;
+            };
+            let what = || format!("object {} of {}", object.id, read.names[p]);
+            if let Some(extra) = data.extras.first() {
+                return Err(WriteError::new(format!(
+                    "{} also holds {extra}, which numbers the mesh's vertices or triangles; a repair renumbers them, so a mesh with one cannot be written yet",
+                    what()
+                )));
+            }
+            let (Some(vertices), Some(triangles)) =
+                (data.spans.vertices.clone(), data.spans.triangles.clone())
+            else {
+                return Err(WriteError::new(format!(
+                    "{} has no <vertices> or no <triangles> element to rewrite",
+                    what()
+                )));
+            };
+            let (vertex_text, triangle_text) = mesh_text(plan, &read.meshes[m], data);
+            splices.push(Splice {
+                at: vertices,
+                text: vertex_text,
+            });
+            splices.push(Splice {
+                at: triangles,
+                text: triangle_text,
+            });
+        }
+        if splices.is_empty() {
+            continue;
+        }
+        let bytes = package
+            .read(key)?
+            .ok_or_else(|| WriteError::new(format!("part {} is gone", read.names[p])))?;
+        rewritten.push((key.clone(), splice(&bytes, splices, &read.names[p])?));
+    }
+
+    let keys: Vec<(usize, Vec<u8>)> = rewritten
+        .into_iter()
+        .map(|(key, bytes)| {
+            package
+                .index(&key)
+                .map(|i| (i, bytes))
+                .ok_or_else(|| WriteError::new(format!("part /{key} has no ZIP entry")))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut archive = package.into_archive();
+    let mut zip = ZipWriter::new(Cursor::new(Vec::new()));
+    let bad = |e: zip::result::ZipError| {
+        WriteError::new(format!("cannot write the repaired package: {e}"))
+    };
+    for i in 0..archive.len() {
+        if let Some((_, bytes)) = keys.iter().find(|(k, _)| *k == i) {
+            let entry = archive.by_index_raw(i).map_err(bad)?;
+            let name = String::from_utf8_lossy(entry.name_raw()).into_owned();
+            let method = match entry.compression() {
+                CompressionMethod::Stored => CompressionMethod::Stored,
+                _ => CompressionMethod::Deflated,
+            };
+            let mut options = SimpleFileOptions::default()
+                .compression_method(method)
+                .large_file(bytes.len() as u64 >= u32::MAX as u64);
+            if let Some(time) = entry.last_modified() {
+                options = options.last_modified_time(time);
+            }
+            drop(entry);
+            zip.start_file(name, options).map_err(bad)?;
+            zip.write_all(bytes)?;
+        } else {
+            let entry = archive.by_index_raw(i).map_err(bad)?;
+            zip.raw_copy_file(entry).map_err(bad)?;
+        }
+    }
+    let comment = archive.comment().to_vec();
+    if !comment.is_empty() {
+        zip.set_raw_comment(comment.into_boxed_slice())
+            .map_err(bad)?;
+    }
+    let bytes = zip.finish().map_err(bad)?.into_inner();
+    write_atomic(out, &bytes)
+}
+
+/// The part `bytes` with every splice's range replaced by its text (ranges sorted, checked to be
+/// elements of the part and not to overlap).
+fn splice(bytes: &[u8], mut splices: Vec<Splice>, part: &str) -> Result<Vec<u8>, WriteError> {
+    splices.sort_by_key(|s| s.at.start);
+    let mut out =
+        Vec::with_capacity(bytes.len() + splices.iter().map(|s| s.text.len()).sum::<usize>());
+    let mut done = 0usize;
+    for s in &splices {
+        let (start, end) = (s.at.start as usize, s.at.end as usize);
+        let fits = start >= done
+            && start < end
+            && end <= bytes.len()
+            && bytes[start] == b'<'
+            && bytes[end - 1] == b'>';
+        if !fits {
+            return Err(WriteError::new(format!(
+                "the mesh elements of {part} are not where they were read (internal error: please report this file)"
+            )));
+        }
+        out.extend_from_slice(&bytes[done..start]);
+        // The element's own qualified name and indentation are kept for what replaces it.
+        out.extend_from_slice(&restyle(&s.text, bytes, start));
+        done = end;
+    }
+    out.extend_from_slice(&bytes[done..]);
+    Ok(out)
+}
+
+/// `text` (written with `<PFX` for the element's prefix, `\nIND` for a new line at the element's
+/// indentation and `\nIND+` one level deeper) for the element at `start` of `bytes`.
+fn restyle(text: &str, bytes: &[u8], start: usize) -> Vec<u8> {
+    let name_end = bytes[start + 1..]
+        .iter()
+        .position(|b| b.is_ascii_whitespace() || matches!(b, b'>' | b'/'))
+        .map_or(bytes.len(), |n| start + 1 + n);
+    let name = &bytes[start + 1..name_end];
+    let prefix = match name.iter().rposition(|&b| b == b':') {
+        Some(colon) => &name[..=colon],
+        None => &[][..],
+    };
+    let line = bytes[..start]
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |n| n + 1);
+    let indent: Vec<u8> = bytes[line..start]
+        .iter()
+        .take_while(|b| matches!(b, b' ' | b'\t'))
+        .copied()
+        .collect();
+    let mut deeper = indent.clone();
+    deeper.extend_from_slice(if indent.contains(&b'\t') {
+        b"\t"
+    } else {
+        b"  "
+    });
+    let mut out = Vec::with_capacity(text.len() + text.len() / 4);
+    let mut rest = text.as_bytes();
+    while let Some(i) = rest.iter().position(|&b| b == 0) {
+        out.extend_from_slice(&rest[..i]);
+        match rest.get(i + 1) {
+            Some(b'P') => out.extend_from_slice(prefix),
+            Some(b'I') => {
+                out.push(b'\n');
+                out.extend_from_slice(&indent);
+            }
+            Some(b'D') => {
+                out.push(b'\n');
+                out.extend_from_slice(&deeper);
+            }
+            _ => {}
+        }
+        rest = &rest[(i + 2).min(rest.len())..];
+    }
+    out.extend_from_slice(rest);
+    out
+}
+
+/// The new `<vertices>` and `<triangles>` of a repaired mesh, in [`restyle`]'s markers: NUL `P`
+/// for the prefix, NUL `I` for a line at the element's indentation, NUL `D` one level deeper.
+fn mesh_text(plan: &Plan, mesh: &Mesh, data: &MeshData) -> (String, String) {
+    let (index, count) = renumber(plan);
+    let index = &index;
+    let mut v = String::with_capacity(48 * count + 32);
+    v.push_str("<\0Pvertices>");
+    for (i, &used) in plan.used_vertices.iter().enumerate() {
+        if !used {
+            continue;
+        }
+        let p = plan.position(mesh, i as u32);
+        v.push_str("\0D<\0Pvertex x=\"");
+        push_number(&mut v, p[0]);
+        v.push_str("\" y=\"");
+        push_number(&mut v, p[1]);
+        v.push_str("\" z=\"");
+        push_number(&mut v, p[2]);
+        v.push_str("\"/>");
+    }
+    v.push_str("\0I</\0Pvertices>");
+
+    let mut t = String::with_capacity(48 * plan.triangles.len() + 32);
+    t.push_str("<\0Ptriangles>");
+    let property = |s: usize| data.properties.get(s).copied().unwrap_or([NONE; 4]);
+    for triangle in &plan.triangles {
+        t.push_str("\0D<\0Ptriangle");
+        for (k, c) in triangle.corners.iter().enumerate() {
+            t.push_str([" v1=\"", "\" v2=\"", "\" v3=\""][k]);
+            push_int(&mut t, index[c.vertex as usize]);
+        }
+        t.push('"');
+        let (pid, corners) = match triangle.source {
+            Some(s) => {
+                let [pid, p1, p2, p3] = property(s as usize);
+                // A triangle with p1 alone has one property for all its corners.
+                let alone = p2 == NONE && p3 == NONE;
+                let corner = |c: u32| -> u32 {
+                    if c / 3 != s || alone {
+                        return p1;
+                    }
+                    match [p1, p2, p3][(c % 3) as usize] {
+                        NONE => p1,
+                        p => p,
+                    }
+                };
+                let q = triangle.corners.map(|c| corner(c.from));
+                (pid, if alone { [q[0], NONE, NONE] } else { q })
+            }
+            None => {
+                let [pid, p1, _, _] = property(triangle.near as usize);
+                (pid, [p1, NONE, NONE])
+            }
+        };
+        if pid != NONE {
+            t.push_str(" pid=\"");
+            push_int(&mut t, pid);
+            t.push('"');
+        }
+        for (k, p) in corners.into_iter().enumerate() {
+            if p != NONE {
+                t.push_str([" p1=\"", " p2=\"", " p3=\""][k]);
+                push_int(&mut t, p);
+                t.push('"');
+            }
+        }
+        t.push_str("/>");
+    }
+    t.push_str("\0I</\0Ptriangles>");
+    (v, t)
+}
