@@ -40,6 +40,8 @@ pub struct Built {
     pub source: Vec<u32>,
     /// Whether the table has no non-manifold edge or vertex.
     pub manifold: bool,
+    /// The component (index into [`Analysis::components`]) of every table face.
+    pub component: Vec<u32>,
 }
 
 /// [`analyse`], keeping what it built.
@@ -56,9 +58,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     };
 
     // 1. Faces: leave out invalid and degenerate ones, count zero-area ones, build the table.
-    let diagonal2 = a.bbox.map_or(0.0, |[lo, hi]| dist2(&lo, &hi));
-    // area <= 1e-12 d^2  <=>  |cross|^2 <= (2e-12 d^2)^2
-    let zero_cross2 = (2e-12 * diagonal2).powi(2);
+    let zero_cross2 = zero_area_bound(a.bbox);
     let mut referenced = vec![false; points.len()];
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(mesh.triangles.len());
     // The input index of every kept face.
@@ -88,7 +88,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     // cache (in input order a shuffled mesh misses it for nearly every corner).
     for t in &triangles {
         let [p, q, r] = t.map(|i| &points[i as usize]);
-        let cross2 = norm2(&normal(p, q, r));
+        let cross2 = cross2(p, q, r);
         if cross2 <= zero_cross2 {
             a.zero_area_faces += 1;
         }
@@ -176,12 +176,18 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     };
     a.shells = shells(&faces, &component_of, &components, &fans.fans);
     a.components = components;
+    // Each face's patch becomes its component, in place.
+    let mut component = patches.of_face;
+    for c in &mut component {
+        *c = component_of_patch[*c as usize];
+    }
     let built = Built {
         tolerance: options.weld_tolerance,
         welded,
         table,
         source,
         manifold: a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0,
+        component,
     };
     (a, built)
 }
@@ -709,6 +715,18 @@ fn bounding_box<'a>(points: impl Iterator<Item = &'a [f64; 3]>) -> Option<[[f64;
         }
     }
     bbox
+}
+
+/// The largest [`cross2`] of a zero-area face in a mesh with this bounding box: a face's area is at
+/// most 1e-12 x (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`.
+pub(crate) fn zero_area_bound(bbox: Option<[[f64; 3]; 2]>) -> f64 {
+    let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(&lo, &hi));
+    (2e-12 * diagonal2).powi(2)
+}
+
+/// `|(b - a) x (c - a)|^2`: four times the squared area of triangle `a b c`.
+pub(crate) fn cross2(a: &[f64; 3], b: &[f64; 3], c: &[f64; 3]) -> f64 {
+    norm2(&normal(a, b, c))
 }
 
 /// A (not normalised) normal of triangle `a b c`.

@@ -3,10 +3,12 @@
 //! rules decide later what those facts mean for a user.
 
 pub(crate) mod analyse;
+pub mod intersect;
 pub(crate) mod nesting;
 mod places;
 
 pub use analyse::{analyse, analyse_keeping, Built};
+pub use intersect::{intersect, intersections, Intersections, Search, Surface};
 pub use places::{places, Places};
 
 /// How the analysis welds vertices (SPEC 3).

@@ -1,0 +1,292 @@
+//! The broad phase: a bounding-volume hierarchy over face boxes, and the pairs of faces whose boxes
+//! overlap, found by walking the tree against itself.
+//!
+//! Faces are sorted along a Morton curve (a 30-bit code of their box centre, radix-sorted), so
+//! faces close in the order are close in space. Runs of [`LEAF`] faces are the leaves; level `k + 1`
+//! joins the nodes `2i` and `2i + 1` of level `k`, up to one root. Boxes are `f32`, rounded outward
+//! from the exact `f64` boxes, so two faces whose closed triangles share a point always have
+//! overlapping boxes here too.
+//!
+//! The walk: within a node, the pairs within each child and the pairs between the two children;
+//! between two nodes whose boxes overlap, the pairs between their children. Every unordered pair of
+//! faces is looked at once, where the walk first separates them. Near the root the three parts run as
+//! parallel tasks (`rayon::join`) on the current pool; each task adds its findings to its own
+//! [`Visit`] and the tasks' findings are merged, so the answer does not depend on the thread count.
+
+/// Faces per leaf.
+pub(super) const LEAF: usize = 4;
+
+/// A node with at least this many faces splits its work into parallel tasks.
+const PARALLEL_FACES: usize = 1 << 13;
+
+/// Lowest corner then highest corner.
+pub(super) type Box3 = [f32; 6];
+
+/// The outward-rounded `f32` box of points.
+pub(super) fn box_of(points: &[[f64; 3]]) -> Box3 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let down = |x: f64| {
+        let y = x as f32;
+        if f64::from(y) > x {
+            y.next_down()
+        } else {
+            y
+        }
+    };
+    let up = |x: f64| {
+        let y = x as f32;
+        if f64::from(y) < x {
+            y.next_up()
+        } else {
+            y
+        }
+    };
+    [
+        down(lo[0]),
+        down(lo[1]),
+        down(lo[2]),
+        up(hi[0]),
+        up(hi[1]),
+        up(hi[2]),
+    ]
+}
+
+/// Whether two closed boxes share a point.
+#[inline]
+pub(super) fn overlap(a: &Box3, b: &Box3) -> bool {
+    a[0] <= b[3] && b[0] <= a[3] && a[1] <= b[4] && b[1] <= a[4] && a[2] <= b[5] && b[2] <= a[5]
+}
+
+fn join(a: &Box3, b: &Box3) -> Box3 {
+    [
+        a[0].min(b[0]),
+        a[1].min(b[1]),
+        a[2].min(b[2]),
+        a[3].max(b[3]),
+        a[4].max(b[4]),
+        a[5].max(b[5]),
+    ]
+}
+
+/// The order of `boxes` along a Morton curve through their centres (ties keep their order).
+pub(super) fn morton_order(boxes: &[Box3]) -> Vec<u32> {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    let centre = |b: &Box3, k: usize| 0.5 * b[k] + 0.5 * b[k + 3];
+    for b in boxes {
+        for k in 0..3 {
+            lo[k] = lo[k].min(centre(b, k));
+            hi[k] = hi[k].max(centre(b, k));
+        }
+    }
+    let scale: [f32; 3] = std::array::from_fn(|k| {
+        let extent = hi[k] - lo[k];
+        if extent > 0.0 && extent.is_finite() {
+            1023.0 / extent
+        } else {
+            0.0
+        }
+    });
+    let mut keys: Vec<u64> = boxes
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let cell = |k: usize| {
+                let x = (centre(b, k) - lo[k]) * scale[k];
+                // NaN (an infinite box) and out-of-range values clamp into the grid.
+                (x.clamp(0.0, 1023.0) as u32).min(1023)
+            };
+            let code = spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2;
+            u64::from(code) << 32 | i as u64
+        })
+        .collect();
+    radix_sort_high(&mut keys);
+    keys.iter().map(|&k| k as u32).collect()
+}
+
+/// The 10 low bits of `x`, two zero bits after each.
+fn spread(x: u32) -> u32 {
+    let mut x = x & 0x3ff;
+    x = (x | x << 16) & 0x030000ff;
+    x = (x | x << 8) & 0x0300f00f;
+    x = (x | x << 4) & 0x030c30c3;
+    x = (x | x << 2) & 0x09249249;
+    x
+}
+
+/// Stable sort of `keys` by their bits 32..62 (three passes of ten bits).
+fn radix_sort_high(keys: &mut Vec<u64>) {
+    let mut other = vec![0u64; keys.len()];
+    for pass in 0..3 {
+        let shift = 32 + 10 * pass;
+        let digit = |k: u64| ((k >> shift) & 0x3ff) as usize;
+        let mut start = [0usize; 1025];
+        for &k in keys.iter() {
+            start[digit(k) + 1] += 1;
+        }
+        for i in 0..1024 {
+            start[i + 1] += start[i];
+        }
+        for &k in keys.iter() {
+            let slot = &mut start[digit(k)];
+            other[*slot] = k;
+            *slot += 1;
+        }
+        std::mem::swap(keys, &mut other);
+    }
+}
+
+/// The boxes of every level, leaves first, the root last.
+pub(super) fn levels(boxes: &[Box3]) -> Vec<Vec<Box3>> {
+    let mut levels: Vec<Vec<Box3>> = vec![boxes
+        .chunks(LEAF)
+        .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
+        .collect()];
+    while levels.last().is_some_and(|l| l.len() > 1) {
+        let below = levels.last().expect("a level");
+        let up = below
+            .chunks(2)
+            .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
+            .collect();
+        levels.push(up);
+    }
+    levels
+}
+
+/// What the walk calls for each pair of faces (positions in the sorted order) with overlapping
+/// boxes, and the state it merges across parallel tasks.
+pub(super) trait Visit: Send + Sized {
+    /// A new, empty state for a parallel task.
+    fn fork(&self) -> Self;
+    /// Adds a finished task's state.
+    fn merge(&mut self, other: Self);
+    /// Faces `a` and `b` (sorted positions, `a != b`) have overlapping boxes.
+    fn pair(&mut self, a: u32, b: u32);
+    /// The walk may stop now.
+    fn done(&self) -> bool;
+}
+
+/// The tree over sorted face boxes.
+pub(super) struct Tree<'a> {
+    pub boxes: &'a [Box3],
+    pub levels: &'a [Vec<Box3>],
+}
+
+impl Tree<'_> {
+    /// Calls `visit.pair` once for every unordered pair of faces whose boxes overlap.
+    pub(super) fn walk<V: Visit>(&self, visit: &mut V) {
+        let Some(top) = self.levels.len().checked_sub(1) else {
+            return;
+        };
+        if self.levels[top].is_empty() {
+            return;
+        }
+        self.within(top, 0, visit);
+    }
+
+    /// The faces under node `i` of level `k`.
+    fn faces(&self, k: usize, i: usize) -> std::ops::Range<usize> {
+        let span = LEAF << k;
+        let start = i * span;
+        start..(start + span).min(self.boxes.len())
+    }
+
+    fn parallel(&self, k: usize) -> bool {
+        LEAF << k >= PARALLEL_FACES
+    }
+
+    /// Pairs within node `i` of level `k`.
+    fn within<V: Visit>(&self, k: usize, i: usize, visit: &mut V) {
+        if visit.done() {
+            return;
+        }
+        if k == 0 {
+            let faces = self.faces(0, i);
+            for a in faces.clone() {
+                for b in a + 1..faces.end {
+                    if overlap(&self.boxes[a], &self.boxes[b]) {
+                        visit.pair(a as u32, b as u32);
+                    }
+                }
+            }
+            return;
+        }
+        let (c0, c1) = (2 * i, 2 * i + 1);
+        let has_c1 = c1 < self.levels[k - 1].len();
+        if self.parallel(k) && has_c1 {
+            let (mut v1, mut v2) = (visit.fork(), visit.fork());
+            rayon::join(
+                || self.within(k - 1, c0, visit),
+                || {
+                    rayon::join(
+                        || self.within(k - 1, c1, &mut v1),
+                        || self.between(k - 1, c0, c1, &mut v2),
+                    )
+                },
+            );
+            visit.merge(v1);
+            visit.merge(v2);
+            return;
+        }
+        self.within(k - 1, c0, visit);
+        if has_c1 {
+            self.within(k - 1, c1, visit);
+            self.between(k - 1, c0, c1, visit);
+        }
+    }
+
+    /// Pairs between nodes `a` and `b` of level `k` (different faces).
+    fn between<V: Visit>(&self, k: usize, a: usize, b: usize, visit: &mut V) {
+        if visit.done() || !overlap(&self.levels[k][a], &self.levels[k][b]) {
+            return;
+        }
+        if k == 0 {
+            let fb = self.faces(0, b);
+            let bbox = &self.levels[0][b];
+            for x in self.faces(0, a) {
+                let xb = &self.boxes[x];
+                if !overlap(xb, bbox) {
+                    continue;
+                }
+                for y in fb.clone() {
+                    if overlap(xb, &self.boxes[y]) {
+                        visit.pair(x as u32, y as u32);
+                    }
+                }
+            }
+            return;
+        }
+        // Both nodes split: up to four pairs of children.
+        let below = self.levels[k - 1].len();
+        let children = |i: usize| [Some(2 * i), (2 * i + 1 < below).then_some(2 * i + 1)];
+        let ([x0, x1], [y0, y1]) = (children(a), children(b));
+        let pairs = [(x0, y0), (x0, y1), (x1, y0), (x1, y1)].map(|(x, y)| x.zip(y));
+        if self.parallel(k) {
+            let mut forks = [visit.fork(), visit.fork(), visit.fork()];
+            let [f1, f2, f3] = &mut forks;
+            let go = |pair: Option<(usize, usize)>, v: &mut V| {
+                if let Some((x, y)) = pair {
+                    self.between(k - 1, x, y, v);
+                }
+            };
+            rayon::join(
+                || rayon::join(|| go(pairs[0], visit), || go(pairs[1], f1)),
+                || rayon::join(|| go(pairs[2], f2), || go(pairs[3], f3)),
+            );
+            for v in forks {
+                visit.merge(v);
+            }
+        } else {
+            for (x, y) in pairs.into_iter().flatten() {
+                self.between(k - 1, x, y, visit);
+            }
+        }
+    }
+}
