@@ -39,6 +39,9 @@ pub struct Surface<'a> {
     pub component: &'a (dyn Fn(u32) -> u32 + Sync),
     /// Whether table face `t` is left out (zero-area faces).
     pub left_out: &'a (dyn Fn(u32) -> bool + Sync),
+    /// The number of table face `t` in the findings (pairs, involved faces), for instance its input
+    /// face; `None`: its table number. The kept pairs are the lowest in this numbering.
+    pub number: Option<&'a [u32]>,
 }
 
 /// How far the search goes.
@@ -110,25 +113,6 @@ impl Intersections {
         met.sort_unstable();
         met
     }
-
-    /// The same findings with face `t` called `number[t]` (for instance the input face of each
-    /// table face), over `faces` faces. Pairs are sorted again: the kept ones stay those that were
-    /// lowest before.
-    pub fn renumbered(mut self, number: &[u32], faces: usize) -> Intersections {
-        let mut involved = vec![0u64; faces.div_ceil(64)];
-        for (t, &n) in number.iter().enumerate() {
-            if self.involves(t as u32) {
-                involved[n as usize / 64] |= 1 << (n % 64);
-            }
-        }
-        self.involved = involved;
-        for p in &mut self.pairs {
-            let [f, g] = p.map(|t| number[t as usize]);
-            *p = [f.min(g), f.max(g)];
-        }
-        self.pairs.sort_unstable();
-        self
-    }
 }
 
 /// The faces that meet in `mesh` after the analysis's weld (`options`), with the faces, pairs and
@@ -148,20 +132,21 @@ pub fn intersections(mesh: &Mesh, options: &Options, search: &Search) -> Interse
             let [a, b, c] = triangles[t as usize].map(|v| &points[v as usize]);
             cross2(a, b, c) <= bound
         },
+        number: Some(&built.source),
     };
-    intersect(&surface, search).renumbered(&built.source, mesh.triangles.len())
+    intersect(&surface, search)
 }
 
 /// A face in the sorted order of the broad phase.
 #[derive(Debug, Clone, Copy)]
 struct Face {
     vertices: [u32; 3],
-    /// The table face.
+    /// The face's number in the findings.
     face: u32,
     component: u32,
 }
 
-/// Finds the faces of `surface` that meet. Faces are numbered as in the table.
+/// Finds the faces of `surface` that meet.
 pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let nt = surface.table.triangle_count();
     let triangles = surface.table.triangles();
@@ -188,7 +173,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
             let t = kept[i as usize];
             Face {
                 vertices: triangles[t as usize],
-                face: t,
+                face: surface.number.map_or(t, |n| n[t as usize]),
                 component: (surface.component)(t),
             }
         })
@@ -196,7 +181,12 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     drop((kept, order));
     let levels = tree::levels(&boxes);
 
-    let involved: Vec<AtomicU64> = (0..nt.div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
+    let numbers = surface
+        .number
+        .map_or(nt, |n| n.iter().map(|&x| x as usize + 1).max().unwrap_or(0));
+    let involved: Vec<AtomicU64> = (0..numbers.div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
     let stop = AtomicBool::new(false);
     let shared = Shared {
         points,
@@ -327,7 +317,7 @@ impl Visit for Finder<'_> {
         if kept > 0 {
             let (f, g) = (fa.face, fb.face);
             t.pairs.push([f.min(g), f.max(g)]);
-            if t.pairs.len() >= 2 * kept.max(256) {
+            if t.pairs.len() >= kept.max(256).saturating_mul(2) {
                 t.pairs.sort_unstable();
                 t.pairs.truncate(kept);
             }

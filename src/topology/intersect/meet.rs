@@ -240,3 +240,166 @@ fn cross(a: Point, b: Point) -> Point {
         a[0] * b[1] - a[1] * b[0],
     ]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A corner: welded vertex id and position.
+    type Corner = (u32, Point);
+
+    /// Whether `f` and `g` meet, asserting that the answer is the same for every rotation of
+    /// either face's corners, both windings of each, and the two faces swapped.
+    fn meets(f: [Corner; 3], g: [Corner; 3]) -> bool {
+        let variants = |t: [Corner; 3]| {
+            let mut all = Vec::new();
+            for r in 0..3 {
+                let turned = [t[r], t[(r + 1) % 3], t[(r + 2) % 3]];
+                all.push(turned);
+                all.push([turned[0], turned[2], turned[1]]);
+            }
+            all
+        };
+        let answer = |f: [Corner; 3], g: [Corner; 3]| {
+            faces_meet(
+                f.map(|c| c.0),
+                f.map(|c| c.1),
+                g.map(|c| c.0),
+                g.map(|c| c.1),
+            )
+        };
+        let first = answer(f, g);
+        for fv in variants(f) {
+            for gv in variants(g) {
+                assert_eq!(answer(fv, gv), first, "{fv:?} {gv:?}");
+                assert_eq!(answer(gv, fv), first, "{gv:?} {fv:?}");
+            }
+        }
+        first
+    }
+
+    /// The face f of every test: `(0,0,0) (4,0,0) (0,4,0)` in the plane z = 0, vertices 0, 1, 2.
+    /// Its points are `x, y >= 0, x + y <= 4`.
+    const F: [Corner; 3] = [
+        (0, [0.0, 0.0, 0.0]),
+        (1, [4.0, 0.0, 0.0]),
+        (2, [0.0, 4.0, 0.0]),
+    ];
+
+    /// A face of new vertices 10, 11, 12 (no vertex shared with F).
+    fn apart(a: Point, b: Point, c: Point) -> [Corner; 3] {
+        [(10, a), (11, b), (12, c)]
+    }
+
+    /// g = (1,1,-1) (1,1,1) (-2,-2,0) lies in the plane x = y and cuts z = 0 along the segment from
+    /// (-2,-2,0) (a vertex) to (1,1,0) (its vertical edge's midpoint); F holds (0,0,0)..(2,2,0) of
+    /// that line, so they share (0,0,0)..(1,1,0): a crossing. Moved by +4 in x, the cut is
+    /// (2,-2,0)..(5,1,0) on y = x - 4, which meets F's region only where y >= 0 and x + y <= 4,
+    /// that is x >= 4 and x <= 4: the point (4,0,0), F's vertex, inside g: a touch. Moved by +5,
+    /// y = x - 5 needs x >= 5 and x <= 4.5: apart.
+    #[test]
+    fn crossing_touching_and_apart() {
+        let g = |dx: f64| {
+            apart(
+                [1.0 + dx, 1.0, -1.0],
+                [1.0 + dx, 1.0, 1.0],
+                [-2.0 + dx, -2.0, 0.0],
+            )
+        };
+        assert!(meets(F, g(0.0)));
+        assert!(meets(F, g(4.0)));
+        assert!(!meets(F, g(5.0)));
+    }
+
+    /// g = (1,1,h) (1,2,1) (2,1,1): for h = 0 its vertex (1,1,0) is inside F (1 + 1 < 4) and the
+    /// rest is above z = 0: one common point, they meet. For h = 1e-9 (or -1e-9 seen from below,
+    /// with the other two vertices at z = -1) no point of g is on z = 0: no contact, however close.
+    #[test]
+    fn vertex_on_the_interior_and_a_gap_of_1e_9() {
+        let g = |h: f64, up: f64| apart([1.0, 1.0, h], [1.0, 2.0, up], [2.0, 1.0, up]);
+        assert!(meets(F, g(0.0, 1.0)));
+        assert!(!meets(F, g(1e-9, 1.0)));
+        assert!(meets(F, g(0.0, -1.0)));
+        assert!(!meets(F, g(-1e-9, -1.0)));
+    }
+
+    /// g = (2,-1,1) (2,1,-1) (2,-1,-1) lies in the plane x = 2; its edge from (2,-1,1) to (2,1,-1)
+    /// passes through (2,0,0) on F's edge from (0,0,0) to (4,0,0), and g meets z = 0 only along
+    /// (2,-1,0)..(2,0,0), which F holds only at y = 0: an edge touching an edge at one point. Moved
+    /// by -2^-30 in y, g's points on z = 0 all have y < 0: apart.
+    #[test]
+    fn edge_touching_an_edge() {
+        let g = |dy: f64| {
+            apart(
+                [2.0, -1.0 + dy, 1.0],
+                [2.0, 1.0 + dy, -1.0],
+                [2.0, -1.0 + dy, -1.0],
+            )
+        };
+        assert!(meets(F, g(0.0)));
+        assert!(!meets(F, g(-(2f64.powi(-30)))));
+    }
+
+    /// In the plane z = 0: g = (1,1) (5,1) (1,5) overlaps F around (1.5, 1.5); g = (2,2) (5,2) (2,5)
+    /// has its vertex (2,2) on F's edge x + y = 4 and the rest beyond it: they touch at one point;
+    /// g = (3,3) (6,3) (3,6) has x + y >= 6 > 4 everywhere: apart. And g = (1,1) (2,1) (1,2) lies
+    /// inside F: no edges cross, they overlap.
+    #[test]
+    fn coplanar_overlap_touch_apart_and_inside() {
+        let g = |a: f64, b: f64| apart([a, a, 0.0], [b, a, 0.0], [a, b, 0.0]);
+        assert!(meets(F, g(1.0, 5.0)));
+        assert!(meets(F, g(2.0, 5.0)));
+        assert!(!meets(F, g(3.0, 6.0)));
+        assert!(meets(F, g(1.0, 2.0)));
+    }
+
+    /// Sharing the edge (0,0,0)-(4,0,0) (vertices 0 and 1) with s the other vertex of g: s =
+    /// (2,2,0) is in F's plane on F's side of the edge (y > 0): g folds onto F, they meet. s =
+    /// (2,-2,0) is on the other side: a flat continuation, only the edge is common. s = (2,2,1) or
+    /// (2,2,1e-9) is off the plane: the planes cross along the edge's line, only the edge is common.
+    #[test]
+    fn shared_edge_fold_or_not() {
+        let g = |s: Point| [F[0], F[1], (12, s)];
+        assert!(meets(F, g([2.0, 2.0, 0.0])));
+        assert!(!meets(F, g([2.0, -2.0, 0.0])));
+        assert!(!meets(F, g([2.0, 2.0, 1.0])));
+        assert!(!meets(F, g([2.0, 2.0, 1e-9])));
+    }
+
+    /// Sharing vertex 0 at the origin, g = (0,0,0) c d:
+    /// - c = (-1,0,1), d = (0,-1,1): g is above z = 0 except at the origin: only the vertex is
+    ///   common;
+    /// - c = (1,1,-1), d = (1,1,1): g cuts z = 0 along (0,0,0)..(1,1,0), inside F: they cross
+    ///   through their only shared vertex;
+    /// - c = (2,1,0), d = (1,2,0): g lies in F (coplanar overlap);
+    /// - c = (-1,0,0), d = (0,-1,0): coplanar, in the opposite quadrant: only the vertex;
+    /// - c = (2,0,0), d = (2,-2,0): coplanar, g's edge to (2,0,0) runs along F's edge to (4,0,0):
+    ///   they share that segment;
+    /// - c = (2,2,1), d = (2,2,-1): g's edge c d crosses F's edge x + y = 4 at (2,2,0), and g holds
+    ///   the whole segment from the origin to it, which F holds too.
+    #[test]
+    fn shared_vertex_with_and_without_another_common_point() {
+        let g = |c: Point, d: Point| [F[0], (11, c), (12, d)];
+        assert!(!meets(F, g([-1.0, 0.0, 1.0], [0.0, -1.0, 1.0])));
+        assert!(meets(F, g([1.0, 1.0, -1.0], [1.0, 1.0, 1.0])));
+        assert!(meets(F, g([2.0, 1.0, 0.0], [1.0, 2.0, 0.0])));
+        assert!(!meets(F, g([-1.0, 0.0, 0.0], [0.0, -1.0, 0.0])));
+        assert!(meets(F, g([2.0, 0.0, 0.0], [2.0, -2.0, 0.0])));
+        assert!(meets(F, g([2.0, 2.0, 1.0], [2.0, 2.0, -1.0])));
+    }
+
+    /// A face on the same three vertices (either winding) covers F: they meet.
+    #[test]
+    fn same_three_vertices() {
+        assert!(meets(F, F));
+    }
+
+    /// (0,0,0) (1,1,1) (3,3,3) are on one line; (0,0,0) (1,1,1) (3,3,3 + 2^-40) are not, though
+    /// their area is tiny.
+    #[test]
+    fn collinear_points() {
+        let (a, b) = ([0.0; 3], [1.0; 3]);
+        assert!(collinear(a, b, [3.0; 3]));
+        assert!(!collinear(a, b, [3.0, 3.0, 3.0 + 2f64.powi(-40)]));
+    }
+}

@@ -290,3 +290,90 @@ impl Tree<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Collects the pairs the walk reports, as (lower, higher) sorted positions.
+    struct Pairs(Vec<(u32, u32)>);
+
+    impl Visit for Pairs {
+        fn fork(&self) -> Self {
+            Pairs(Vec::new())
+        }
+        fn merge(&mut self, other: Self) {
+            self.0.extend(other.0);
+        }
+        fn pair(&mut self, a: u32, b: u32) {
+            self.0.push((a.min(b), a.max(b)));
+        }
+        fn done(&self) -> bool {
+            false
+        }
+    }
+
+    /// 10,000 random boxes (so the walk runs as parallel tasks) of sides up to 0.03 in the unit
+    /// cube, plus a few long thin ones: the walk reports exactly the overlapping pairs a test of all
+    /// n(n-1)/2 pairs finds, each once.
+    #[test]
+    fn walk_finds_every_overlapping_pair_once() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut boxes: Vec<Box3> = (0..10_000)
+            .map(|_| {
+                let lo = [next(), next(), next()];
+                let side = [0.03 * next(), 0.03 * next(), 0.03 * next()];
+                box_of(&[lo, std::array::from_fn(|k| lo[k] + side[k])])
+            })
+            .collect();
+        for k in 0..3 {
+            let mut hi = [0.51; 3];
+            hi[k] = 1.0;
+            boxes.push(box_of(&[[0.5; 3], hi]));
+        }
+        let order = morton_order(&boxes);
+        let sorted: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
+        let levels = levels(&sorted);
+        let mut found = Pairs(Vec::new());
+        Tree {
+            boxes: &sorted,
+            levels: &levels,
+        }
+        .walk(&mut found);
+        let mut found: Vec<(u32, u32)> = found
+            .0
+            .iter()
+            .map(|&(a, b)| {
+                let (a, b) = (order[a as usize], order[b as usize]);
+                (a.min(b), a.max(b))
+            })
+            .collect();
+        found.sort_unstable();
+        let mut all = Vec::new();
+        for a in 0..boxes.len() {
+            for b in a + 1..boxes.len() {
+                if overlap(&boxes[a], &boxes[b]) {
+                    all.push((a as u32, b as u32));
+                }
+            }
+        }
+        assert!(all.len() > 1000, "{} pairs", all.len());
+        assert_eq!(found, all);
+    }
+
+    /// `f64` boxes that touch at one coordinate still touch after rounding to `f32`: 0.1 is not an
+    /// `f32`, and the box ending at 0.1 and the one starting there both keep it.
+    #[test]
+    fn rounding_keeps_touching_boxes_touching() {
+        let a = box_of(&[[0.0; 3], [0.1; 3]]);
+        let b = box_of(&[[0.1; 3], [0.2; 3]]);
+        assert!(overlap(&a, &b));
+        assert!(f64::from(a[3]) >= 0.1 && f64::from(b[0]) <= 0.1);
+    }
+}
