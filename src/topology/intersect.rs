@@ -15,7 +15,7 @@
 //!   come from the Corner Table's welded vertex ids.
 //!
 //! The predicates are exact as long as no product underflows or overflows; a mesh whose largest
-//! coordinate is beyond 2^±200 is first scaled by a power of two, which changes no sign.
+//! coordinate is beyond 2^±100 is first scaled by a power of two, which changes no sign.
 
 mod meet;
 mod tree;
@@ -154,32 +154,50 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let points: &[[f64; 3]] = scaled.as_deref().unwrap_or(surface.points);
     let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
 
-    let kept: Vec<u32> = (0..nt as u32)
+    // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
+    // the faces kept, each with its box and what the walk needs of it.
+    let kept: Vec<(Box3, Face)> = (0..nt as u32)
         .into_par_iter()
-        .filter(|&t| {
+        .with_min_len(4096)
+        .filter_map(|t| {
             let [a, b, c] = corners(t);
-            !(surface.left_out)(t) && !meet::collinear(a, b, c)
-        })
-        .collect();
-    let boxes: Vec<Box3> = kept
-        .par_iter()
-        .map(|&t| tree::box_of(&corners(t)))
-        .collect();
-    let order = tree::morton_order(&boxes);
-    let boxes: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
-    let faces: Vec<Face> = order
-        .iter()
-        .map(|&i| {
-            let t = kept[i as usize];
-            Face {
+            if (surface.left_out)(t) || meet::collinear(a, b, c) {
+                return None;
+            }
+            let face = Face {
                 vertices: triangles[t as usize],
                 face: surface.number.map_or(t, |n| n[t as usize]),
                 component: (surface.component)(t),
-            }
+            };
+            Some((tree::box_of(&[a, b, c]), face))
         })
         .collect();
-    drop((kept, order));
-    let levels = tree::levels(&boxes);
+    let boxes: Vec<Box3> = kept.iter().map(|k| k.0).collect();
+    let order = tree::morton_order(&boxes);
+    let boxes: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
+    // The faces in that order, their vertices renumbered in order of first use and their points
+    // copied in that order, so that faces close in the walk find their points close in memory.
+    let mut local = vec![u32::MAX; points.len()];
+    let mut near: Vec<[f64; 3]> = Vec::with_capacity(kept.len() / 2 + 3);
+    let faces: Vec<Face> = order
+        .iter()
+        .map(|&i| {
+            let mut face = kept[i as usize].1;
+            face.vertices = face.vertices.map(|v| {
+                let slot = &mut local[v as usize];
+                if *slot == u32::MAX {
+                    *slot = near.len() as u32;
+                    near.push(points[v as usize]);
+                }
+                *slot
+            });
+            face
+        })
+        .collect();
+    drop((kept, order, local, scaled));
+    let points = &near;
+    let tree = Tree::build(&boxes);
+    drop(boxes);
 
     let numbers = surface
         .number
@@ -199,11 +217,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         shared: &shared,
         tally: Tally::default(),
     };
-    Tree {
-        boxes: &boxes,
-        levels: &levels,
-    }
-    .walk(&mut finder);
+    tree.walk(&mut finder);
 
     let mut tally = finder.tally;
     tally.tidy(search.kept_pairs);
@@ -218,8 +232,9 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
 }
 
 /// The points times a power of two that brings the largest coordinate near 1, when it is beyond
-/// 2^200 or below 2^-200 (where products of coordinates could overflow or underflow); `None` when
-/// they are fine as they are. Scaling by a power of two is exact, so no sign changes.
+/// 2^100 or below 2^-100 (where products of coordinates could overflow or underflow, or boxes
+/// leave the range of `f32`); `None` when they are fine as they are. Scaling by a power of two is
+/// exact, so no sign changes.
 fn scaled_points(points: &[[f64; 3]]) -> Option<Vec<[f64; 3]>> {
     let largest = points
         .iter()
@@ -227,7 +242,7 @@ fn scaled_points(points: &[[f64; 3]]) -> Option<Vec<[f64; 3]>> {
         .map(|x| x.abs())
         .filter(|x| x.is_finite())
         .fold(0.0f64, f64::max);
-    let (lo, hi) = (2f64.powi(-200), 2f64.powi(200));
+    let (lo, hi) = (2f64.powi(-100), 2f64.powi(100));
     if largest == 0.0 || (lo..=hi).contains(&largest) {
         return None;
     }

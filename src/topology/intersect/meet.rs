@@ -59,7 +59,7 @@ pub(super) fn faces_meet(f_ids: [u32; 3], f: [Point; 3], g_ids: [u32; 3], g: [Po
 /// Faces `p q r` and `p q s` sharing edge `p q`: they meet only when they fold onto each other,
 /// lying in one plane with `r` and `s` on the same side of the edge.
 fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
-    if o3(p, q, r, s) != 0.0 {
+    if Plane::of(p, q, r).side(s) != 0.0 {
         return false;
     }
     let axes = plane_axes(p, q, r);
@@ -70,12 +70,14 @@ fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
 /// Faces `v a b` and `v c d` sharing vertex `v`: they meet when they have another common point,
 /// which is when segment `c d` meets `v a b` or segment `a b` meets `v c d`.
 fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
-    let (sc, sd) = (o3(v, a, b, c), o3(v, a, b, d));
+    let f = Plane::of(v, a, b);
+    let (sc, sd) = (f.side(c), f.side(d));
     if strictly_same_side(sc, sd) {
         // g touches f's plane only at v.
         return false;
     }
-    let (sa, sb) = (o3(v, c, d, a), o3(v, c, d, b));
+    let g = Plane::of(v, c, d);
+    let (sa, sb) = (g.side(a), g.side(b));
     if strictly_same_side(sa, sb) {
         return false;
     }
@@ -85,11 +87,13 @@ fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
 
 /// Faces with no shared vertex: they meet when an edge of one meets the other.
 fn disjoint_meet(f: [Point; 3], g: [Point; 3]) -> bool {
-    let sg = g.map(|x| o3(f[0], f[1], f[2], x));
+    let plane = Plane::of(f[0], f[1], f[2]);
+    let sg = g.map(|x| plane.side(x));
     if one_strict_side(sg) {
         return false;
     }
-    let sf = f.map(|x| o3(g[0], g[1], g[2], x));
+    let plane = Plane::of(g[0], g[1], g[2]);
+    let sf = f.map(|x| plane.side(x));
     if one_strict_side(sf) {
         return false;
     }
@@ -102,6 +106,55 @@ fn disjoint_meet(f: [Point; 3], g: [Point; 3]) -> bool {
         segment_meets_triangle(f[k], f[l], sf[k], sf[l], g)
             || segment_meets_triangle(g[k], g[l], sg[k], sg[l], f)
     })
+}
+
+/// The plane of triangle `p q r`, kept in the form its side tests filter best: `n = (q - p) x
+/// (r - p)` and, per axis, the sum of the magnitudes of the two products that make `n`'s
+/// component.
+struct Plane {
+    p: Point,
+    q: Point,
+    r: Point,
+    n: [f64; 3],
+    magnitude: [f64; 3],
+}
+
+/// Bounds the rounding error of `(s - p) . n` relative to its permanent: Shewchuk's first
+/// `orient3d` bound, `(7 + 56 eps) eps`, rounded up. The expression has the same shape as the one
+/// his bound is derived for (a sum of three rounded differences, each times a difference of two
+/// products of rounded differences), only expanded along another row.
+const SIDE_ERROR: f64 = 7.8e-16;
+
+impl Plane {
+    fn of(p: Point, q: Point, r: Point) -> Plane {
+        let (u, w) = (sub(q, p), sub(r, p));
+        Plane {
+            p,
+            q,
+            r,
+            n: cross(u, w),
+            magnitude: [
+                (u[1] * w[2]).abs() + (u[2] * w[1]).abs(),
+                (u[2] * w[0]).abs() + (u[0] * w[2]).abs(),
+                (u[0] * w[1]).abs() + (u[1] * w[0]).abs(),
+            ],
+        }
+    }
+
+    /// `orient3d(p, q, r, s)` in sign (the same sign as `-(s - p) . n`): decided in floating point
+    /// when the value is beyond its error bound, else by the exact predicate.
+    #[inline]
+    fn side(&self, s: Point) -> f64 {
+        let d = sub(s, self.p);
+        let det = d[0] * self.n[0] + d[1] * self.n[1] + d[2] * self.n[2];
+        let permanent = d[0].abs() * self.magnitude[0]
+            + d[1].abs() * self.magnitude[1]
+            + d[2].abs() * self.magnitude[2];
+        if det.abs() > SIDE_ERROR * permanent {
+            return -det;
+        }
+        o3(self.p, self.q, self.r, s)
+    }
 }
 
 /// Whether closed segment `p q` meets closed triangle `t`, given the signs `sp`, `sq` of
@@ -163,9 +216,21 @@ fn point_in_triangle_2d(p: [f64; 2], t: [[f64; 2]; 3]) -> bool {
 }
 
 /// Whether the exact triangle `a b c` is collinear (zero area; three distinct points on a line).
+/// Each component of `(b - a) x (c - a)` is a 2D orientation of one projection; one beyond its
+/// rounding error (Shewchuk's first `orient2d` bound, rounded up) settles it, else the exact
+/// predicate decides.
 pub(super) fn collinear(a: Point, b: Point, c: Point) -> bool {
-    AXES.iter()
-        .all(|axes| o2(axes.of(a), axes.of(b), axes.of(c)) == 0.0)
+    const ERROR: f64 = 3.4e-16;
+    let (u, w) = (sub(b, a), sub(c, a));
+    let clearly_not = (0..3).any(|k| {
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        let (l, r) = (u[i] * w[j], u[j] * w[i]);
+        (l - r).abs() > ERROR * (l.abs() + r.abs())
+    });
+    !clearly_not
+        && AXES
+            .iter()
+            .all(|axes| o2(axes.of(a), axes.of(b), axes.of(c)) == 0.0)
 }
 
 /// The two coordinates kept when a plane is projected along the third.
@@ -392,6 +457,47 @@ mod tests {
     #[test]
     fn same_three_vertices() {
         assert!(meets(F, F));
+    }
+
+    /// The filtered side test has the sign of the exact `orient3d` for points on and near a
+    /// plane: points `a + s (b - a) + t (c - a)` moved off it by 0, a few ulps or more, where
+    /// a plain floating-point determinant can get the sign wrong. For the triangle (0.1, 0.2,
+    /// 0.3) (1.7, 0.4, 0.9) (0.3, 1.9, 0.6) the points are rounded off the plane; for (1, 2, 3)
+    /// (9, -2, 5) (-3, 7, 1) with s, t multiples of 1/8 they are exactly on it.
+    #[test]
+    fn filtered_side_agrees_with_orient3d() {
+        let sign = |x: f64| (x > 0.0) as i8 - (x < 0.0) as i8;
+        let mut decided = [0usize; 3];
+        for (a, b, c, step) in [
+            (
+                [0.1, 0.2, 0.3],
+                [1.7, 0.4, 0.9],
+                [0.3, 1.9, 0.6],
+                1.0 / 13.0,
+            ),
+            (
+                [1.0, 2.0, 3.0],
+                [9.0, -2.0, 5.0],
+                [-3.0, 7.0, 1.0],
+                1.0 / 8.0,
+            ),
+        ] {
+            let plane = Plane::of(a, b, c);
+            for i in 0..40 {
+                for j in 0..40 {
+                    let (s, t) = (i as f64 * step - 1.0, j as f64 * step - 2.0);
+                    let on: Point =
+                        std::array::from_fn(|k| a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]));
+                    for off in [0.0, 1e-17, -3e-16, 1e-15, -1e-12, 1e-6] {
+                        let x = [on[0], on[1], on[2] + off];
+                        let exact = sign(o3(a, b, c, x));
+                        assert_eq!(sign(plane.side(x)), exact, "{x:?}");
+                        decided[(exact + 1) as usize] += 1;
+                    }
+                }
+            }
+        }
+        assert!(decided.iter().all(|&n| n > 1000), "{decided:?}");
     }
 
     /// (0,0,0) (1,1,1) (3,3,3) are on one line; (0,0,0) (1,1,1) (3,3,3 + 2^-40) are not, though

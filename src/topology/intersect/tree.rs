@@ -143,23 +143,6 @@ fn radix_sort_high(keys: &mut Vec<u64>) {
     }
 }
 
-/// The boxes of every level, leaves first, the root last.
-pub(super) fn levels(boxes: &[Box3]) -> Vec<Vec<Box3>> {
-    let mut levels: Vec<Vec<Box3>> = vec![boxes
-        .chunks(LEAF)
-        .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
-        .collect()];
-    while levels.last().is_some_and(|l| l.len() > 1) {
-        let below = levels.last().expect("a level");
-        let up = below
-            .chunks(2)
-            .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
-            .collect();
-        levels.push(up);
-    }
-    levels
-}
-
 /// What the walk calls for each pair of faces (positions in the sorted order) with overlapping
 /// boxes, and the state it merges across parallel tasks.
 pub(super) trait Visit: Send + Sized {
@@ -173,33 +156,79 @@ pub(super) trait Visit: Send + Sized {
     fn done(&self) -> bool;
 }
 
+/// The boxes of the faces of one leaf, coordinate by coordinate (`[c][j]`: coordinate `c` of the
+/// box of face `j`, lowest x, y, z then highest x, y, z), so that one box is tested against all
+/// of them at once. A leaf with fewer faces has NaN boxes in the free places, which overlap
+/// nothing.
+type Leaf = [[f32; LEAF]; 6];
+
 /// The tree over sorted face boxes.
-pub(super) struct Tree<'a> {
-    pub boxes: &'a [Box3],
-    pub levels: &'a [Vec<Box3>],
+pub(super) struct Tree {
+    leaves: Vec<Leaf>,
+    /// The boxes of every level, leaves first, the root last.
+    levels: Vec<Vec<Box3>>,
 }
 
-impl Tree<'_> {
-    /// Calls `visit.pair` once for every unordered pair of faces whose boxes overlap.
-    pub(super) fn walk<V: Visit>(&self, visit: &mut V) {
-        let Some(top) = self.levels.len().checked_sub(1) else {
-            return;
-        };
-        if self.levels[top].is_empty() {
-            return;
+impl Tree {
+    /// The tree over `boxes`, in their order.
+    pub(super) fn build(boxes: &[Box3]) -> Tree {
+        let leaves = boxes
+            .chunks(LEAF)
+            .map(|chunk| {
+                let mut leaf = [[f32::NAN; LEAF]; 6];
+                for (j, b) in chunk.iter().enumerate() {
+                    for c in 0..6 {
+                        leaf[c][j] = b[c];
+                    }
+                }
+                leaf
+            })
+            .collect();
+        let mut levels: Vec<Vec<Box3>> = vec![boxes
+            .chunks(LEAF)
+            .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
+            .collect()];
+        while levels.last().is_some_and(|l| l.len() > 1) {
+            let below = levels.last().expect("a level");
+            let up = below
+                .chunks(2)
+                .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
+                .collect();
+            levels.push(up);
         }
-        self.within(top, 0, visit);
+        Tree { leaves, levels }
     }
 
-    /// The faces under node `i` of level `k`.
-    fn faces(&self, k: usize, i: usize) -> std::ops::Range<usize> {
-        let span = LEAF << k;
-        let start = i * span;
-        start..(start + span).min(self.boxes.len())
+    /// Calls `visit.pair` once for every unordered pair of faces whose boxes overlap.
+    pub(super) fn walk<V: Visit>(&self, visit: &mut V) {
+        if self.leaves.is_empty() {
+            return;
+        }
+        self.within(self.levels.len() - 1, 0, visit);
     }
 
     fn parallel(&self, k: usize) -> bool {
         LEAF << k >= PARALLEL_FACES
+    }
+
+    /// Bit `j` set: the box of face `j` of `leaf` overlaps `b`.
+    #[inline]
+    fn overlapping(leaf: &Leaf, b: &Box3) -> u32 {
+        let mut mask = 0;
+        for j in 0..LEAF {
+            let hit = (leaf[0][j] <= b[3])
+                & (b[0] <= leaf[3][j])
+                & (leaf[1][j] <= b[4])
+                & (b[1] <= leaf[4][j])
+                & (leaf[2][j] <= b[5])
+                & (b[2] <= leaf[5][j]);
+            mask |= u32::from(hit) << j;
+        }
+        mask
+    }
+
+    fn face_box(leaf: &Leaf, j: usize) -> Box3 {
+        std::array::from_fn(|c| leaf[c][j])
     }
 
     /// Pairs within node `i` of level `k`.
@@ -208,38 +237,46 @@ impl Tree<'_> {
             return;
         }
         if k == 0 {
-            let faces = self.faces(0, i);
-            for a in faces.clone() {
-                for b in a + 1..faces.end {
-                    if overlap(&self.boxes[a], &self.boxes[b]) {
-                        visit.pair(a as u32, b as u32);
-                    }
+            let leaf = &self.leaves[i];
+            let base = (LEAF * i) as u32;
+            for j in 0..LEAF - 1 {
+                let mut hits = Self::overlapping(leaf, &Self::face_box(leaf, j)) & !((2 << j) - 1);
+                while hits != 0 {
+                    let other = hits.trailing_zeros();
+                    hits &= hits - 1;
+                    visit.pair(base + j as u32, base + other);
                 }
             }
             return;
         }
         let (c0, c1) = (2 * i, 2 * i + 1);
-        let has_c1 = c1 < self.levels[k - 1].len();
-        if self.parallel(k) && has_c1 {
-            let (mut v1, mut v2) = (visit.fork(), visit.fork());
-            rayon::join(
-                || self.within(k - 1, c0, visit),
-                || {
-                    rayon::join(
-                        || self.within(k - 1, c1, &mut v1),
-                        || self.between(k - 1, c0, c1, &mut v2),
-                    )
-                },
-            );
-            visit.merge(v1);
-            visit.merge(v2);
-            return;
-        }
-        self.within(k - 1, c0, visit);
-        if has_c1 {
+        if c1 >= self.levels[k - 1].len() {
+            self.within(k - 1, c0, visit);
+        } else if self.parallel(k) {
+            self.within_in_parallel(k, c0, c1, visit);
+        } else {
+            self.within(k - 1, c0, visit);
             self.within(k - 1, c1, visit);
             self.between(k - 1, c0, c1, visit);
         }
+    }
+
+    /// [`Tree::within`] for a big node with children `c0` and `c1`: three parallel tasks. Kept out
+    /// of line so that the many small calls do not carry the forks' stack frame.
+    #[inline(never)]
+    fn within_in_parallel<V: Visit>(&self, k: usize, c0: usize, c1: usize, visit: &mut V) {
+        let (mut v1, mut v2) = (visit.fork(), visit.fork());
+        rayon::join(
+            || self.within(k - 1, c0, visit),
+            || {
+                rayon::join(
+                    || self.within(k - 1, c1, &mut v1),
+                    || self.between(k - 1, c0, c1, &mut v2),
+                )
+            },
+        );
+        visit.merge(v1);
+        visit.merge(v2);
     }
 
     /// Pairs between nodes `a` and `b` of level `k` (different faces).
@@ -248,45 +285,71 @@ impl Tree<'_> {
             return;
         }
         if k == 0 {
-            let fb = self.faces(0, b);
-            let bbox = &self.levels[0][b];
-            for x in self.faces(0, a) {
-                let xb = &self.boxes[x];
-                if !overlap(xb, bbox) {
-                    continue;
-                }
-                for y in fb.clone() {
-                    if overlap(xb, &self.boxes[y]) {
-                        visit.pair(x as u32, y as u32);
-                    }
-                }
-            }
+            self.between_leaves(a, b, visit);
+            return;
+        }
+        if self.parallel(k) {
+            self.between_in_parallel(k, a, b, visit);
             return;
         }
         // Both nodes split: up to four pairs of children.
+        let below = &self.levels[k - 1];
+        let (a1, b1) = (
+            (2 * a + 1).min(below.len() - 1),
+            (2 * b + 1).min(below.len() - 1),
+        );
+        for x in 2 * a..=a1 {
+            for y in 2 * b..=b1 {
+                if k == 1 {
+                    if overlap(&below[x], &below[y]) {
+                        self.between_leaves(x, y, visit);
+                    }
+                } else {
+                    self.between(k - 1, x, y, visit);
+                }
+            }
+        }
+    }
+
+    /// The pairs of faces of leaves `a` and `b` whose boxes overlap.
+    #[inline]
+    fn between_leaves<V: Visit>(&self, a: usize, b: usize, visit: &mut V) {
+        let (leaf_a, leaf_b) = (&self.leaves[a], &self.leaves[b]);
+        let (base_a, base_b) = ((LEAF * a) as u32, (LEAF * b) as u32);
+        // The faces of a that overlap b's box, then each against b's faces.
+        let mut near = Self::overlapping(leaf_a, &self.levels[0][b]);
+        while near != 0 {
+            let j = near.trailing_zeros();
+            near &= near - 1;
+            let mut hits = Self::overlapping(leaf_b, &Self::face_box(leaf_a, j as usize));
+            while hits != 0 {
+                let other = hits.trailing_zeros();
+                hits &= hits - 1;
+                visit.pair(base_a + j, base_b + other);
+            }
+        }
+    }
+
+    /// [`Tree::between`] for big nodes: the pairs of children as four parallel tasks.
+    #[inline(never)]
+    fn between_in_parallel<V: Visit>(&self, k: usize, a: usize, b: usize, visit: &mut V) {
         let below = self.levels[k - 1].len();
         let children = |i: usize| [Some(2 * i), (2 * i + 1 < below).then_some(2 * i + 1)];
         let ([x0, x1], [y0, y1]) = (children(a), children(b));
         let pairs = [(x0, y0), (x0, y1), (x1, y0), (x1, y1)].map(|(x, y)| x.zip(y));
-        if self.parallel(k) {
-            let mut forks = [visit.fork(), visit.fork(), visit.fork()];
-            let [f1, f2, f3] = &mut forks;
-            let go = |pair: Option<(usize, usize)>, v: &mut V| {
-                if let Some((x, y)) = pair {
-                    self.between(k - 1, x, y, v);
-                }
-            };
-            rayon::join(
-                || rayon::join(|| go(pairs[0], visit), || go(pairs[1], f1)),
-                || rayon::join(|| go(pairs[2], f2), || go(pairs[3], f3)),
-            );
-            for v in forks {
-                visit.merge(v);
+        let mut forks = [visit.fork(), visit.fork(), visit.fork()];
+        let [f1, f2, f3] = &mut forks;
+        let go = |pair: Option<(usize, usize)>, v: &mut V| {
+            if let Some((x, y)) = pair {
+                self.between(k - 1, x, y, v);
             }
-        } else {
-            for (x, y) in pairs.into_iter().flatten() {
-                self.between(k - 1, x, y, visit);
-            }
+        };
+        rayon::join(
+            || rayon::join(|| go(pairs[0], visit), || go(pairs[1], f1)),
+            || rayon::join(|| go(pairs[2], f2), || go(pairs[3], f3)),
+        );
+        for v in forks {
+            visit.merge(v);
         }
     }
 }
@@ -339,13 +402,8 @@ mod tests {
         }
         let order = morton_order(&boxes);
         let sorted: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
-        let levels = levels(&sorted);
         let mut found = Pairs(Vec::new());
-        Tree {
-            boxes: &sorted,
-            levels: &levels,
-        }
-        .walk(&mut found);
+        Tree::build(&sorted).walk(&mut found);
         let mut found: Vec<(u32, u32)> = found
             .0
             .iter()

@@ -1,0 +1,270 @@
+//! Self-intersection benchmark: the test alone (weld, table and components built beforehand) on a
+//! clean 1M-face torus, on two overlapping 0.5M tori (many pairs), on corpus files with many pairs
+//! when the corpus is there, each on 1 and 2 threads; then the whole path of a scan (read a binary
+//! STL, analyse, test) for a 1M-face torus with a few crossings on 1 thread and for a 10k-face file
+//! stopping at the first pair (the pre-commit case).
+//!
+//!     cargo bench --bench intersect            # everything
+//!     cargo bench --bench intersect -- clean   # only the parts whose label contains "clean"
+
+use std::path::Path;
+use std::time::Instant;
+
+use meshvet::formats::{self, Format, Limits, ReadContext};
+use meshvet::topology::{analyse_keeping, intersect, Built, Intersections, Search, Surface};
+use meshvet::Mesh;
+
+#[path = "../tests/shapes/mod.rs"]
+#[allow(dead_code)]
+mod shapes;
+
+/// CPU seconds this process has used (all threads), from `/proc/self/stat` (10 ms ticks); 0
+/// where there is no such file. On a loaded machine the wall time overstates the work; the CPU
+/// time does not.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let fields: Vec<f64> = stat
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .map(|f| f.parse().unwrap_or(0.0))
+        .collect();
+    // After the command name: state, ..., utime (the 12th), stime (the 13th).
+    fields
+        .get(11)
+        .zip(fields.get(12))
+        .map_or(0.0, |(u, s)| (u + s) / 100.0)
+}
+
+/// Wall and CPU times of `runs` runs, in seconds, and the last result.
+fn times<T>(runs: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, Vec<f64>, T) {
+    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
+    let mut out = None;
+    for _ in 0..runs {
+        let (start, start_cpu) = (Instant::now(), cpu_seconds());
+        let r = f();
+        wall.push(start.elapsed().as_secs_f64());
+        cpu.push(cpu_seconds() - start_cpu);
+        out = Some(r);
+    }
+    (wall, cpu, out.expect("at least one run"))
+}
+
+fn range(t: &[f64]) -> (f64, f64) {
+    let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = t.iter().copied().fold(0.0, f64::max);
+    (lo, hi)
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
+}
+
+/// The test alone on an analysed mesh, as the analysis will call it.
+fn test_built(built: &Built, search: &Search) -> Intersections {
+    let points = &built.welded.positions;
+    let triangles = built.table.triangles();
+    let bbox = points.iter().fold(
+        [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]],
+        |[lo, hi], p| {
+            [
+                std::array::from_fn(|k| lo[k].min(p[k])),
+                std::array::from_fn(|k| hi[k].max(p[k])),
+            ]
+        },
+    );
+    let d2: f64 = (0..3).map(|k| (bbox[1][k] - bbox[0][k]).powi(2)).sum();
+    let bound = (2e-12 * d2).powi(2);
+    let cross2 = |t: u32| {
+        let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+        let (u, v) = (
+            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+        );
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+    };
+    let surface = Surface {
+        points,
+        table: &built.table,
+        component: &|t| built.component[t as usize],
+        left_out: &|t| cross2(t) <= bound,
+        number: Some(&built.source),
+    };
+    intersect(&surface, search)
+}
+
+/// Whether the part called `label` runs: no filter on the command line, or one it contains.
+fn wanted(label: &str) -> bool {
+    let filter: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    filter.is_empty() || filter.iter().any(|f| label.contains(f.as_str()))
+}
+
+fn bench_test(label: &str, mesh: &Mesh, runs: usize) {
+    if !wanted(label) {
+        return;
+    }
+    let (_, built) = analyse_keeping(mesh, &meshvet::Options::default());
+    let faces = built.table.triangle_count() as f64;
+    for threads in [1, 2] {
+        let (t, cpu, found) =
+            pool(threads).install(|| times(runs, || test_built(&built, &Search::default())));
+        let ((lo, hi), (cpu_lo, cpu_hi)) = (range(&t), range(&cpu));
+        println!(
+            "{label}, {threads} thread(s): wall {:.0}-{:.0} ms ({:.2}-{:.2} M faces/s), CPU {:.0}-{:.0} ms ({:.2}-{:.2} M faces per CPU-second; {} within, {} between, {} component pairs)",
+            lo * 1e3,
+            hi * 1e3,
+            faces / hi / 1e6,
+            faces / lo / 1e6,
+            cpu_lo * 1e3,
+            cpu_hi * 1e3,
+            faces / cpu_hi / 1e6,
+            faces / cpu_lo / 1e6,
+            found.self_intersections,
+            found.pairs_between,
+            found.intersecting_components(),
+        );
+    }
+}
+
+/// Binary STL of `mesh` (f32 coordinates, zero normals).
+fn write_stl(mesh: &Mesh, path: &Path) {
+    let mut bytes = vec![0u8; 80];
+    bytes.extend((mesh.triangles.len() as u32).to_le_bytes());
+    for t in &mesh.triangles {
+        bytes.extend([0u8; 12]);
+        for &v in t {
+            for x in mesh.positions[v as usize] {
+                bytes.extend((x as f32).to_le_bytes());
+            }
+        }
+        bytes.extend([0u8; 2]);
+    }
+    std::fs::write(path, bytes).expect("write the STL");
+}
+
+/// Read, analyse and test one file, as a scan does for it.
+fn scan_one(path: &Path, cx: &ReadContext, search: &Search) -> Intersections {
+    let meshes = formats::read(path, Format::Stl, cx).expect("read the STL");
+    let (_, built) = analyse_keeping(&meshes[0], &meshvet::Options::default());
+    test_built(&built, search)
+}
+
+/// A torus with one vertex pushed through the tube: vertex (0, 0), at (R + r, 0, 0) on the outer
+/// equator, moved to (R - 1.2 r, 0, 0), just beyond the inner wall, so its six faces cross the
+/// faces of the inner wall around it.
+fn torus_with_a_dent(n: usize, m: usize) -> Mesh {
+    let mut mesh = shapes::torus(n, m, Some(7));
+    mesh.positions[0] = [shapes::TORUS_R - 1.2 * shapes::TORUS_TUBE, 0.0, 0.0];
+    mesh
+}
+
+fn main() {
+    println!(
+        "(timings are wall ranges over several runs on a 2-core machine shared with other builds)"
+    );
+    if wanted("clean torus 1M faces, shuffled") {
+        let torus = shapes::torus(1000, 500, Some(0x5eed));
+        bench_test("clean torus 1M faces, shuffled", &torus, 5);
+    }
+
+    if wanted("two crossing tori") {
+        two_tori();
+    }
+    corpus_files();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let cx = ReadContext {
+        root: dir.path().to_path_buf(),
+        limits: Limits::default(),
+    };
+    if wanted("whole path, 1M") {
+        whole_path_1m(dir.path(), &cx);
+    }
+    if wanted("whole path, 10k") {
+        whole_path_10k(dir.path(), &cx);
+    }
+}
+
+fn whole_path_1m(dir: &Path, cx: &ReadContext) {
+    let big = dir.join("dented-torus-1M.stl");
+    write_stl(&torus_with_a_dent(1000, 500), &big);
+    for threads in [1, 2] {
+        let (t, cpu, found) =
+            pool(threads).install(|| times(3, || scan_one(&big, cx, &Search::default())));
+        let ((lo, hi), (cpu_lo, cpu_hi)) = (range(&t), range(&cpu));
+        println!(
+            "whole path, 1M-face torus with a dent (read STL + analyse + test), {threads} thread(s): wall {:.0}-{:.0} ms, CPU {:.0}-{:.0} ms ({} pairs within)",
+            lo * 1e3,
+            hi * 1e3,
+            cpu_lo * 1e3,
+            cpu_hi * 1e3,
+            found.self_intersections
+        );
+    }
+}
+
+fn whole_path_10k(dir: &Path, cx: &ReadContext) {
+    let small = dir.join("dented-torus-10k.stl");
+    write_stl(&torus_with_a_dent(100, 50), &small);
+    let first = Search {
+        kept_pairs: 1,
+        first_only: true,
+    };
+    for (label, search) in [("first pair", first), ("every pair", Search::default())] {
+        let (t, _, found) = pool(1).install(|| times(20, || scan_one(&small, cx, &search)));
+        let (lo, hi) = range(&t);
+        println!(
+            "whole path, 10k-face file, {label}, 1 thread: {:.1}-{:.1} ms ({} pairs within)",
+            lo * 1e3,
+            hi * 1e3,
+            found.self_intersections
+        );
+    }
+}
+
+/// Two tori of 0.5M faces each, the second turned by a small angle about x: their surfaces cross
+/// along long curves, many pairs between the two components.
+fn two_tori() {
+    let a = shapes::torus(1000, 250, Some(1));
+    let mut b = a.clone();
+    let (s, c) = 0.05f64.sin_cos();
+    for p in &mut b.positions {
+        *p = [p[0], c * p[1] - s * p[2], s * p[1] + c * p[2]];
+    }
+    bench_test(
+        "two crossing tori 2 x 0.5M faces",
+        &shapes::merge(&[a, b]),
+        5,
+    );
+}
+
+fn corpus_files() {
+    let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus");
+    let cx = ReadContext {
+        root: corpus.clone(),
+        limits: Limits::default(),
+    };
+    for file in ["common3d/ogre.obj", "trimesh/featuretype.STL"] {
+        if !wanted(file) {
+            continue;
+        }
+        let path = corpus.join(file);
+        let Some(format) = Format::of_path(&path).filter(|_| path.is_file()) else {
+            println!("{file}: no corpus, skipped");
+            continue;
+        };
+        let mesh = formats::read(&path, format, &cx).expect("a corpus file")[0].clone();
+        bench_test(file, &mesh, 10);
+    }
+}
