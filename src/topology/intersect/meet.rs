@@ -280,7 +280,21 @@ fn mixed(s: [f64; 3]) -> bool {
     s.iter().any(|&x| x > 0.0) && s.iter().any(|&x| x < 0.0)
 }
 
+/// `orient3d(a, b, c, d)`: its floating-point value when beyond Shewchuk's first error bound
+/// (the same test `robust` makes first, here inline), else `robust`'s exact answer.
+#[inline]
 fn o3(a: Point, b: Point, c: Point, d: Point) -> f64 {
+    let (ad, bd, cd) = (sub(a, d), sub(b, d), sub(c, d));
+    let (bc, cb) = (bd[0] * cd[1], cd[0] * bd[1]);
+    let (ca, ac) = (cd[0] * ad[1], ad[0] * cd[1]);
+    let (ab, ba) = (ad[0] * bd[1], bd[0] * ad[1]);
+    let det = ad[2] * (bc - cb) + bd[2] * (ca - ac) + cd[2] * (ab - ba);
+    let permanent = (bc.abs() + cb.abs()) * ad[2].abs()
+        + (ca.abs() + ac.abs()) * bd[2].abs()
+        + (ab.abs() + ba.abs()) * cd[2].abs();
+    if det.abs() > SIDE_ERROR * permanent {
+        return det;
+    }
     let p = |p: Point| Coord3D {
         x: p[0],
         y: p[1],
@@ -459,7 +473,8 @@ mod tests {
         assert!(meets(F, F));
     }
 
-    /// The filtered side test has the sign of the exact `orient3d` for points on and near a
+    /// The filtered side test and the inline `orient3d` have the sign of `robust`'s exact
+    /// `orient3d` (which flips when the first point moves to the end) for points on and near a
     /// plane: points `a + s (b - a) + t (c - a)` moved off it by 0, a few ulps or more, where
     /// a plain floating-point determinant can get the sign wrong. For the triangle (0.1, 0.2,
     /// 0.3) (1.7, 0.4, 0.9) (0.3, 1.9, 0.6) the points are rounded off the plane; for (1, 2, 3)
@@ -490,8 +505,15 @@ mod tests {
                         std::array::from_fn(|k| a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]));
                     for off in [0.0, 1e-17, -3e-16, 1e-15, -1e-12, 1e-6] {
                         let x = [on[0], on[1], on[2] + off];
-                        let exact = sign(o3(a, b, c, x));
+                        let c3 = |p: Point| Coord3D {
+                            x: p[0],
+                            y: p[1],
+                            z: p[2],
+                        };
+                        let exact = sign(orient3d(c3(a), c3(b), c3(c), c3(x)));
                         assert_eq!(sign(plane.side(x)), exact, "{x:?}");
+                        assert_eq!(sign(o3(a, b, c, x)), exact, "{x:?}");
+                        assert_eq!(sign(o3(x, a, b, c)), -exact, "{x:?}");
                         decided[(exact + 1) as usize] += 1;
                     }
                 }

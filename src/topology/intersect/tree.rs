@@ -22,40 +22,41 @@ const PARALLEL_FACES: usize = 1 << 13;
 /// Lowest corner then highest corner.
 pub(super) type Box3 = [f32; 6];
 
-/// The outward-rounded `f32` box of points.
-pub(super) fn box_of(points: &[[f64; 3]]) -> Box3 {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
+/// The outward-rounded `f32` box of a triangle's finite points.
+pub(super) fn box_of(points: &[[f64; 3]; 3]) -> Box3 {
+    let mut b = [0.0f32; 6];
+    for k in 0..3 {
+        let [x, y, z] = [points[0][k], points[1][k], points[2][k]];
+        let lo = if x < y { x } else { y };
+        let lo = if lo < z { lo } else { z };
+        let hi = if x > y { x } else { y };
+        let hi = if hi > z { hi } else { z };
+        b[k] = down(lo);
+        b[k + 3] = up(hi);
     }
-    let down = |x: f64| {
-        let y = x as f32;
-        if f64::from(y) > x {
-            y.next_down()
-        } else {
-            y
-        }
-    };
-    let up = |x: f64| {
-        let y = x as f32;
-        if f64::from(y) < x {
-            y.next_up()
-        } else {
-            y
-        }
-    };
-    [
-        down(lo[0]),
-        down(lo[1]),
-        down(lo[2]),
-        up(hi[0]),
-        up(hi[1]),
-        up(hi[2]),
-    ]
+    b
+}
+
+/// The largest `f32` at most `x` (finite `x`; beyond the `f32` range, the infinity that way).
+#[inline]
+fn down(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x {
+        y.next_down()
+    } else {
+        y
+    }
+}
+
+/// The smallest `f32` at least `x`.
+#[inline]
+fn up(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) < x {
+        y.next_up()
+    } else {
+        y
+    }
 }
 
 /// Whether two closed boxes share a point.
@@ -214,17 +215,15 @@ impl Tree {
     /// Bit `j` set: the box of face `j` of `leaf` overlaps `b`.
     #[inline]
     fn overlapping(leaf: &Leaf, b: &Box3) -> u32 {
-        let mut mask = 0;
-        for j in 0..LEAF {
+        (0..LEAF).fold(0, |mask, j| {
             let hit = (leaf[0][j] <= b[3])
                 & (b[0] <= leaf[3][j])
                 & (leaf[1][j] <= b[4])
                 & (b[1] <= leaf[4][j])
                 & (leaf[2][j] <= b[5])
                 & (b[2] <= leaf[5][j]);
-            mask |= u32::from(hit) << j;
-        }
-        mask
+            mask | u32::from(hit) << j
+        })
     }
 
     fn face_box(leaf: &Leaf, j: usize) -> Box3 {
@@ -392,13 +391,13 @@ mod tests {
             .map(|_| {
                 let lo = [next(), next(), next()];
                 let side = [0.03 * next(), 0.03 * next(), 0.03 * next()];
-                box_of(&[lo, std::array::from_fn(|k| lo[k] + side[k])])
+                box_of(&[lo, std::array::from_fn(|k| lo[k] + side[k]), lo])
             })
             .collect();
         for k in 0..3 {
             let mut hi = [0.51; 3];
             hi[k] = 1.0;
-            boxes.push(box_of(&[[0.5; 3], hi]));
+            boxes.push(box_of(&[[0.5; 3], hi, hi]));
         }
         let order = morton_order(&boxes);
         let sorted: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
@@ -429,8 +428,8 @@ mod tests {
     /// `f32`, and the box ending at 0.1 and the one starting there both keep it.
     #[test]
     fn rounding_keeps_touching_boxes_touching() {
-        let a = box_of(&[[0.0; 3], [0.1; 3]]);
-        let b = box_of(&[[0.1; 3], [0.2; 3]]);
+        let a = box_of(&[[0.0; 3], [0.1; 3], [0.0; 3]]);
+        let b = box_of(&[[0.1; 3], [0.2; 3], [0.2; 3]]);
         assert!(overlap(&a, &b));
         assert!(f64::from(a[3]) >= 0.1 && f64::from(b[0]) <= 0.1);
     }
