@@ -81,6 +81,16 @@ fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
     if strictly_same_side(sa, sb) {
         return false;
     }
+    if strictly_opposite(sc, sd) && strictly_opposite(sa, sb) {
+        // Each face crosses the other's plane: the planes meet in a line through v, which leaves f
+        // at a point X of a b and g at a point Y of c d. f and g share [v, X] and [v, Y] of it, so
+        // they meet when X and Y lie on the same side of v, that is when Y (where c d crosses f's
+        // plane) lies in f's angle at v: on the inner side of the lines v a and b v, or on them.
+        // Y is strictly outside an edge's line when the edge's Plücker sign has the sign of c's
+        // side (see `segment_meets_triangle`); testing the two edges alone would also accept the
+        // opposite angle, where both signs flip.
+        return !strictly_same_side(o3(c, d, v, a), sc) && !strictly_same_side(o3(c, d, b, v), sc);
+    }
     segment_meets_triangle(c, d, sc, sd, [v, a, b])
         || segment_meets_triangle(a, b, sa, sb, [v, c, d])
 }
@@ -455,7 +465,12 @@ mod tests {
     /// - c = (2,0,0), d = (2,-2,0): coplanar, g's edge to (2,0,0) runs along F's edge to (4,0,0):
     ///   they share that segment;
     /// - c = (2,2,1), d = (2,2,-1): g's edge c d crosses F's edge x + y = 4 at (2,2,0), and g holds
-    ///   the whole segment from the origin to it, which F holds too.
+    ///   the whole segment from the origin to it, which F holds too;
+    /// - c = (-1,-1,-1), d = (-1,-1,1): each face crosses the other's plane (c, d on either side of
+    ///   z = 0; (4,0,0), (0,4,0) on either side of x = y), but g cuts z = 0 along (0,0,0)..(-1,-1,0),
+    ///   away from F, which holds (0,0,0)..(2,2,0) of that line: only the vertex;
+    /// - c = (-1,-1,-1), d = (3,3,1): the same planes, g's cut now runs from the origin to (1,1,0)
+    ///   (where c d crosses z = 0), into F: they cross.
     #[test]
     fn shared_vertex_with_and_without_another_common_point() {
         let g = |c: Point, d: Point| [F[0], (11, c), (12, d)];
@@ -465,6 +480,21 @@ mod tests {
         assert!(!meets(F, g([-1.0, 0.0, 0.0], [0.0, -1.0, 0.0])));
         assert!(meets(F, g([2.0, 0.0, 0.0], [2.0, -2.0, 0.0])));
         assert!(meets(F, g([2.0, 2.0, 1.0], [2.0, 2.0, -1.0])));
+        assert!(!meets(F, g([-1.0, -1.0, -1.0], [-1.0, -1.0, 1.0])));
+        assert!(meets(F, g([-1.0, -1.0, -1.0], [3.0, 3.0, 1.0])));
+    }
+
+    /// The sign rule the crossing tests rest on: p = (0.2,0.2,-1) below t = (0,0,0) (1,0,0)
+    /// (0,1,0) has `orient3d(t, p) > 0`, and the segment up to (0.2,0.2,1) crosses t's interior,
+    /// where each edge's Plücker sign is negative, `-0.4` for the edge t0 t1 (the determinant of
+    /// the rows p - t1, q - t1, t0 - t1).
+    #[test]
+    fn plucker_signs_inside_oppose_the_near_end() {
+        let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let (p, q) = ([0.2, 0.2, -1.0], [0.2, 0.2, 1.0]);
+        assert!(o3(t[0], t[1], t[2], p) > 0.0);
+        assert!((o3(p, q, t[0], t[1]) + 0.4).abs() < 1e-12);
+        assert!(o3(p, q, t[1], t[2]) < 0.0 && o3(p, q, t[2], t[0]) < 0.0);
     }
 
     /// A face on the same three vertices (either winding) covers F: they meet.
