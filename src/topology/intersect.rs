@@ -172,9 +172,13 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
             Some((tree::box_of(&[a, b, c]), face))
         })
         .collect();
-    let boxes: Vec<Box3> = kept.iter().map(|k| k.0).collect();
+    let boxes: Vec<Box3> = kept.par_iter().with_min_len(1 << 14).map(|k| k.0).collect();
     let order = tree::morton_order(&boxes);
-    let boxes: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
+    let boxes: Vec<Box3> = order
+        .par_iter()
+        .with_min_len(1 << 14)
+        .map(|&i| boxes[i as usize])
+        .collect();
     // The faces in that order, their vertices renumbered in order of first use and their points
     // copied in that order, so that faces close in the walk find their points close in memory.
     let mut local = vec![u32::MAX; points.len()];

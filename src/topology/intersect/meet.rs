@@ -76,6 +76,11 @@ fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
         // g touches f's plane only at v.
         return false;
     }
+    if sc == 0.0 && sd == 0.0 {
+        // One plane (then f's vertices are on g's plane too: no need to ask).
+        return segment_meets_triangle(c, d, 0.0, 0.0, [v, a, b])
+            || segment_meets_triangle(a, b, 0.0, 0.0, [v, c, d]);
+    }
     let g = Plane::of(v, c, d);
     let (sa, sb) = (g.side(a), g.side(b));
     if strictly_same_side(sa, sb) {
@@ -102,20 +107,62 @@ fn disjoint_meet(f: [Point; 3], g: [Point; 3]) -> bool {
     if one_strict_side(sg) {
         return false;
     }
+    if sg == [0.0; 3] {
+        // One plane (then f's vertices are on g's plane too: no need to ask).
+        let axes = plane_axes(f[0], f[1], f[2]);
+        return coplanar_triangles_meet(f.map(|x| axes.of(x)), g.map(|x| axes.of(x)));
+    }
+    if let Some(touch) = touching(g, sg, f) {
+        return touch;
+    }
     let plane = Plane::of(g[0], g[1], g[2]);
     let sf = f.map(|x| plane.side(x));
     if one_strict_side(sf) {
         return false;
     }
-    if sg == [0.0; 3] {
-        let axes = plane_axes(f[0], f[1], f[2]);
-        return coplanar_triangles_meet(f.map(|x| axes.of(x)), g.map(|x| axes.of(x)));
+    if let Some(touch) = touching(f, sf, g) {
+        return touch;
     }
     (0..3).any(|k| {
         let l = (k + 1) % 3;
         segment_meets_triangle(f[k], f[l], sf[k], sf[l], g)
             || segment_meets_triangle(g[k], g[l], sg[k], sg[l], f)
     })
+}
+
+/// When triangle `t` only touches the plane of `other` (given the sides `s` of its vertices, not
+/// all zero, not all strictly on one side), whether they meet: with one vertex on the plane and
+/// the other two strictly on one side, `t` meets the plane only at that vertex; with two on it,
+/// only along that edge. `None` when `t` crosses the plane.
+fn touching(t: [Point; 3], s: [f64; 3], other: [Point; 3]) -> Option<bool> {
+    let zeros = s.iter().filter(|&&x| x == 0.0).count();
+    let k = s.iter().position(|&x| x == 0.0)?;
+    let (l, m) = ((k + 1) % 3, (k + 2) % 3);
+    let axes = || plane_axes(other[0], other[1], other[2]);
+    match zeros {
+        1 if strictly_same_side(s[l], s[m]) => {
+            let axes = axes();
+            Some(point_in_triangle_2d(
+                axes.of(t[k]),
+                other.map(|x| axes.of(x)),
+            ))
+        }
+        2 => {
+            // The other vertex is off the plane; the two on it are an edge of t.
+            let (p, q) = if s[l] == 0.0 {
+                (t[k], t[l])
+            } else {
+                (t[m], t[k])
+            };
+            let axes = axes();
+            Some(segment_meets_triangle_2d(
+                axes.of(p),
+                axes.of(q),
+                other.map(|x| axes.of(x)),
+            ))
+        }
+        _ => None,
+    }
 }
 
 /// The plane of triangle `p q r`, kept in the form its side tests filter best: `n = (q - p) x
@@ -162,6 +209,9 @@ impl Plane {
             + d[2].abs() * self.magnitude[2];
         if det.abs() > SIDE_ERROR * permanent {
             return -det;
+        }
+        if permanent == 0.0 && !has_tiny(&[d, sub(self.q, self.p), sub(self.r, self.p)]) {
+            return 0.0;
         }
         o3(self.p, self.q, self.r, s)
     }
@@ -269,6 +319,19 @@ fn plane_axes(a: Point, b: Point, c: Point) -> Axes {
         .unwrap_or(AXES[order[0]])
 }
 
+/// Whether a difference is nonzero but so small that a product of three such could round to zero
+/// (below 2^-340). Without one, a permanent (a sum of magnitudes of such products) that is zero
+/// in floating point is zero exactly, every term of the determinant with it: the determinant is
+/// exactly zero, which is the common case of points on an axis-aligned plane, and the exact
+/// predicate need not be asked.
+fn has_tiny(differences: &[Point]) -> bool {
+    const TINY: f64 = 4.5e-103; // 2^-340
+    differences
+        .iter()
+        .flatten()
+        .any(|&x| x != 0.0 && x.abs() < TINY)
+}
+
 /// The three signs are all strictly positive or all strictly negative.
 fn one_strict_side(s: [f64; 3]) -> bool {
     (s[0] > 0.0 && s[1] > 0.0 && s[2] > 0.0) || (s[0] < 0.0 && s[1] < 0.0 && s[2] < 0.0)
@@ -305,6 +368,9 @@ fn o3(a: Point, b: Point, c: Point, d: Point) -> f64 {
     if det.abs() > SIDE_ERROR * permanent {
         return det;
     }
+    if permanent == 0.0 && !has_tiny(&[ad, bd, cd]) {
+        return 0.0;
+    }
     let p = |p: Point| Coord3D {
         x: p[0],
         y: p[1],
@@ -313,7 +379,20 @@ fn o3(a: Point, b: Point, c: Point, d: Point) -> f64 {
     orient3d(p(a), p(b), p(c), p(d))
 }
 
+/// `orient2d(a, b, c)`: its floating-point value when beyond Shewchuk's first error bound, zero
+/// when that is exact (see [`has_tiny`]), else `robust`'s exact answer.
+#[inline]
 fn o2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    let (ac, bc) = ([a[0] - c[0], a[1] - c[1]], [b[0] - c[0], b[1] - c[1]]);
+    let (left, right) = (ac[0] * bc[1], ac[1] * bc[0]);
+    let det = left - right;
+    let detsum = left.abs() + right.abs();
+    if det.abs() > 3.4e-16 * detsum {
+        return det;
+    }
+    if detsum == 0.0 && !has_tiny(&[[ac[0], ac[1], 0.0], [bc[0], bc[1], 0.0]]) {
+        return 0.0;
+    }
     let p = |p: [f64; 2]| Coord { x: p[0], y: p[1] };
     orient2d(p(a), p(b), p(c))
 }
@@ -427,6 +506,26 @@ mod tests {
         };
         assert!(meets(F, g(0.0)));
         assert!(!meets(F, g(-(2f64.powi(-30)))));
+    }
+
+    /// g with an edge in F's plane and its third vertex above it meets z = 0 only along that
+    /// edge. The edge (-1,1,0)..(2,1,0) runs through F (y = 1, 0 <= x <= 3): they meet. The edge
+    /// (-1,-1,0)..(-2,1,0) has x < 0 all along: apart. The edge (2,2,0)..(3,3,0) starts on F's
+    /// edge x + y = 4 and leaves it: one common point, they meet.
+    #[test]
+    fn edge_lying_in_the_plane() {
+        assert!(meets(
+            F,
+            apart([-1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [0.0, 1.0, 1.0])
+        ));
+        assert!(!meets(
+            F,
+            apart([-1.0, -1.0, 0.0], [-2.0, 1.0, 0.0], [0.0, 0.0, 1.0])
+        ));
+        assert!(meets(
+            F,
+            apart([2.0, 2.0, 0.0], [3.0, 3.0, 0.0], [3.0, 2.0, 1.0])
+        ));
     }
 
     /// In the plane z = 0: g = (1,1) (5,1) (1,5) overlaps F around (1.5, 1.5); g = (2,2) (5,2) (2,5)

@@ -13,6 +13,8 @@
 //! parallel tasks (`rayon::join`) on the current pool; each task adds its findings to its own
 //! [`Visit`] and the tasks' findings are merged, so the answer does not depend on the thread count.
 
+use rayon::prelude::*;
+
 /// Faces per leaf.
 pub(super) const LEAF: usize = 4;
 
@@ -96,7 +98,8 @@ pub(super) fn morton_order(boxes: &[Box3]) -> Vec<u32> {
         }
     });
     let mut keys: Vec<u64> = boxes
-        .iter()
+        .par_iter()
+        .with_min_len(1 << 14)
         .enumerate()
         .map(|(i, b)| {
             let cell = |k: usize| {
@@ -174,7 +177,8 @@ impl Tree {
     /// The tree over `boxes`, in their order.
     pub(super) fn build(boxes: &[Box3]) -> Tree {
         let leaves = boxes
-            .chunks(LEAF)
+            .par_chunks(LEAF)
+            .with_min_len(1 << 12)
             .map(|chunk| {
                 let mut leaf = [[f32::NAN; LEAF]; 6];
                 for (j, b) in chunk.iter().enumerate() {
@@ -186,7 +190,8 @@ impl Tree {
             })
             .collect();
         let mut levels: Vec<Vec<Box3>> = vec![boxes
-            .chunks(LEAF)
+            .par_chunks(LEAF)
+            .with_min_len(1 << 12)
             .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
             .collect()];
         while levels.last().is_some_and(|l| l.len() > 1) {
