@@ -459,3 +459,57 @@ fn agrees_with_cgal_on_the_corpus() {
     assert_eq!(compared + REFUSED.len(), 165);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Random small meshes with CGAL's exact count of face pairs that meet, made by
+/// `tests/data/cgal_selfx_cases.py` (its doc says how): 200 soups of 10 separate triangles on a
+/// small grid, some coordinates moved by 2^-30 (every pair tested with no shared vertex, touching
+/// and coplanar contacts common), and 200 icosahedra with their vertices moved to random grid
+/// points of {0..4}^3 (one component whose faces share edges and vertices and fold or cross), and
+/// 200 on {0..2}^3 (most contacts exactly coplanar or touching). meshvet finds CGAL's number for
+/// every case: within the component for the icosahedra, between components for the soups.
+#[test]
+fn agrees_with_cgal_on_random_small_meshes() {
+    let text = include_str!("data/cgal_selfx_cases.txt");
+    let mut lines = text.lines();
+    let (mut cases, mut failures) = (0, Vec::new());
+    while let Some(head) = lines.next() {
+        let words: Vec<&str> = head.split_whitespace().collect();
+        assert_eq!(words[0], "case");
+        let (v, f, want): (usize, usize, usize) = (
+            words[2].parse().unwrap(),
+            words[3].parse().unwrap(),
+            words[4].parse().unwrap(),
+        );
+        let numbers = |line: &str| -> Vec<f64> {
+            line.split_whitespace()
+                .map(|w| w.parse().unwrap())
+                .collect()
+        };
+        let positions = (0..v)
+            .map(|_| {
+                let p = numbers(lines.next().unwrap());
+                [p[0], p[1], p[2]]
+            })
+            .collect();
+        let triangles = (0..f)
+            .map(|_| {
+                let t = numbers(lines.next().unwrap());
+                [t[0] as u32, t[1] as u32, t[2] as u32]
+            })
+            .collect();
+        let found = all_pairs(&Mesh::new(positions, triangles));
+        let got = match words[1] {
+            "soup" => (found.self_intersections, found.pairs_between),
+            _ => (found.pairs_between, found.self_intersections),
+        };
+        if got != (0, want) {
+            failures.push(format!(
+                "case {cases} ({}): meshvet {got:?}, CGAL {want}",
+                words[1]
+            ));
+        }
+        cases += 1;
+    }
+    assert_eq!(cases, 600);
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
