@@ -8,10 +8,10 @@
 //! pairs of components with faces that meet (`intersecting_components`), marks every face involved
 //! and keeps the first pairs up to a cap (the counts stay exact). It runs in two phases:
 //!
-//! - broad ([`tree`]): a bounding-volume hierarchy of outward-rounded face boxes, walked against
+//! - broad (`tree`): a bounding-volume hierarchy of outward-rounded face boxes, walked against
 //!   itself, gives every pair of faces whose boxes overlap, in parallel tasks on the current rayon
 //!   pool for big meshes;
-//! - narrow ([`meet`]): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
+//! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
 //!   come from the Corner Table's welded vertex ids.
 //!
 //! The predicates are exact as long as no product underflows or overflows; a mesh whose largest
