@@ -92,9 +92,11 @@ fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
         // they meet when X and Y lie on the same side of v, that is when Y (where c d crosses f's
         // plane) lies in f's angle at v: on the inner side of the lines v a and b v, or on them.
         // Y is strictly outside an edge's line when the edge's Plücker sign has the sign of c's
-        // side (see `segment_meets_triangle`); testing the two edges alone would also accept the
-        // opposite angle, where both signs flip.
-        return !strictly_same_side(o3(c, d, v, a), sc) && !strictly_same_side(o3(c, d, b, v), sc);
+        // side (see `segment_meets_triangle`). Those signs are sides already known: v a against
+        // c d is `orient3d(c, d, v, a)`, a's side of g's plane (c d v is v c d turned), and b v is
+        // `orient3d(c, d, b, v) = -orient3d(v, c, d, b)`, minus b's side, which has a's sign here.
+        // So both lines agree, and one comparison decides.
+        return !strictly_same_side(sa, sc);
     }
     segment_meets_triangle(c, d, sc, sd, [v, a, b])
         || segment_meets_triangle(a, b, sa, sb, [v, c, d])
