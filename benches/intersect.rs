@@ -11,7 +11,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use meshvet::formats::{self, Format, Limits, ReadContext};
-use meshvet::topology::{analyse_keeping, intersect, Built, Intersections, Search, Surface};
+use meshvet::topology::{analyse_keeping, intersections_built, Intersections, Search};
 use meshvet::Mesh;
 
 #[path = "../tests/shapes/mod.rs"]
@@ -37,17 +37,19 @@ fn cpu_seconds() -> f64 {
         .map_or(0.0, |(u, s)| (u + s) / 100.0)
 }
 
-/// Wall and CPU times of `runs` runs, in seconds, and the last result.
-fn times<T>(runs: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, Vec<f64>, T) {
-    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
+/// Wall times of `runs` runs, in seconds, the mean CPU time per run (over all of them, as the
+/// clock ticks are 10 ms) and the last result.
+fn times<T>(runs: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, f64, T) {
+    let mut wall = Vec::new();
     let mut out = None;
+    let start_cpu = cpu_seconds();
     for _ in 0..runs {
-        let (start, start_cpu) = (Instant::now(), cpu_seconds());
+        let start = Instant::now();
         let r = f();
         wall.push(start.elapsed().as_secs_f64());
-        cpu.push(cpu_seconds() - start_cpu);
         out = Some(r);
     }
+    let cpu = (cpu_seconds() - start_cpu) / runs as f64;
     (wall, cpu, out.expect("at least one run"))
 }
 
@@ -64,44 +66,6 @@ fn pool(threads: usize) -> rayon::ThreadPool {
         .expect("a thread pool")
 }
 
-/// The test alone on an analysed mesh, as the analysis will call it.
-fn test_built(built: &Built, search: &Search) -> Intersections {
-    let points = &built.welded.positions;
-    let triangles = built.table.triangles();
-    let bbox = points.iter().fold(
-        [[f64::INFINITY; 3], [f64::NEG_INFINITY; 3]],
-        |[lo, hi], p| {
-            [
-                std::array::from_fn(|k| lo[k].min(p[k])),
-                std::array::from_fn(|k| hi[k].max(p[k])),
-            ]
-        },
-    );
-    let d2: f64 = (0..3).map(|k| (bbox[1][k] - bbox[0][k]).powi(2)).sum();
-    let bound = (2e-12 * d2).powi(2);
-    let cross2 = |t: u32| {
-        let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-        let (u, v) = (
-            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-        );
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
-        n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
-    };
-    let surface = Surface {
-        points,
-        table: &built.table,
-        component: &|t| built.component[t as usize],
-        left_out: &|t| cross2(t) <= bound,
-        number: Some(&built.source),
-    };
-    intersect(&surface, search)
-}
-
 /// Whether the part called `label` runs: no filter on the command line, or one it contains.
 fn wanted(label: &str) -> bool {
     let filter: Vec<String> = std::env::args()
@@ -115,22 +79,23 @@ fn bench_test(label: &str, mesh: &Mesh, runs: usize) {
     if !wanted(label) {
         return;
     }
-    let (_, built) = analyse_keeping(mesh, &meshvet::Options::default());
+    let (analysis, built) = analyse_keeping(mesh, &meshvet::Options::default());
     let faces = built.table.triangle_count() as f64;
     for threads in [1, 2] {
-        let (t, cpu, found) =
-            pool(threads).install(|| times(runs, || test_built(&built, &Search::default())));
-        let ((lo, hi), (cpu_lo, cpu_hi)) = (range(&t), range(&cpu));
+        let (t, cpu, found) = pool(threads).install(|| {
+            times(runs, || {
+                intersections_built(&built, analysis.bbox, &Search::default())
+            })
+        });
+        let (lo, hi) = range(&t);
         println!(
-            "{label}, {threads} thread(s): wall {:.0}-{:.0} ms ({:.2}-{:.2} M faces/s), CPU {:.0}-{:.0} ms ({:.2}-{:.2} M faces per CPU-second; {} within, {} between, {} component pairs)",
+            "{label}, {threads} thread(s): wall {:.0}-{:.0} ms ({:.2}-{:.2} M faces/s), CPU {:.0} ms a run ({:.2} M faces per CPU-second; {} within, {} between, {} component pairs)",
             lo * 1e3,
             hi * 1e3,
             faces / hi / 1e6,
             faces / lo / 1e6,
-            cpu_lo * 1e3,
-            cpu_hi * 1e3,
-            faces / cpu_hi / 1e6,
-            faces / cpu_lo / 1e6,
+            cpu * 1e3,
+            faces / cpu / 1e6,
             found.self_intersections,
             found.pairs_between,
             found.intersecting_components(),
@@ -157,8 +122,8 @@ fn write_stl(mesh: &Mesh, path: &Path) {
 /// Read, analyse and test one file, as a scan does for it.
 fn scan_one(path: &Path, cx: &ReadContext, search: &Search) -> Intersections {
     let meshes = formats::read(path, Format::Stl, cx).expect("read the STL");
-    let (_, built) = analyse_keeping(&meshes[0], &meshvet::Options::default());
-    test_built(&built, search)
+    let (analysis, built) = analyse_keeping(&meshes[0], &meshvet::Options::default());
+    intersections_built(&built, analysis.bbox, search)
 }
 
 /// A torus with one vertex pushed through the tube: vertex (0, 0), at (R + r, 0, 0) on the outer
@@ -202,13 +167,12 @@ fn whole_path_1m(dir: &Path, cx: &ReadContext) {
     for threads in [1, 2] {
         let (t, cpu, found) =
             pool(threads).install(|| times(3, || scan_one(&big, cx, &Search::default())));
-        let ((lo, hi), (cpu_lo, cpu_hi)) = (range(&t), range(&cpu));
+        let (lo, hi) = range(&t);
         println!(
-            "whole path, 1M-face torus with a dent (read STL + analyse + test), {threads} thread(s): wall {:.0}-{:.0} ms, CPU {:.0}-{:.0} ms ({} pairs within)",
+            "whole path, 1M-face torus with a dent (read STL + analyse + test), {threads} thread(s): wall {:.0}-{:.0} ms, CPU {:.0} ms a run ({} pairs within)",
             lo * 1e3,
             hi * 1e3,
-            cpu_lo * 1e3,
-            cpu_hi * 1e3,
+            cpu * 1e3,
             found.self_intersections
         );
     }

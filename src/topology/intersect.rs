@@ -24,7 +24,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use rayon::prelude::*;
 
-use super::analyse::{analyse_keeping, cross2, zero_area_bound};
+use super::analyse::{analyse_keeping, cross2, zero_area_bound, Built};
 use super::Options;
 use crate::corner_table::CornerTable;
 use crate::mesh::Mesh;
@@ -121,7 +121,17 @@ impl Intersections {
 /// zero-area faces are left out.
 pub fn intersections(mesh: &Mesh, options: &Options, search: &Search) -> Intersections {
     let (analysis, built) = analyse_keeping(mesh, options);
-    let bound = zero_area_bound(analysis.bbox);
+    intersections_built(&built, analysis.bbox, search)
+}
+
+/// [`intersections`] of a mesh already analysed, from what the analysis built and its bounding box
+/// ([`crate::Analysis::bbox`], which sets the zero-area threshold).
+pub fn intersections_built(
+    built: &Built,
+    bbox: Option<[[f64; 3]; 2]>,
+    search: &Search,
+) -> Intersections {
+    let bound = zero_area_bound(bbox);
     let points = &built.welded.positions;
     let triangles = built.table.triangles();
     let surface = Surface {

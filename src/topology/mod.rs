@@ -8,7 +8,9 @@ pub(crate) mod nesting;
 mod places;
 
 pub use analyse::{analyse, analyse_keeping, Built};
-pub use intersect::{intersect, intersections, Intersections, Search, Surface};
+pub use intersect::{
+    intersect, intersections, intersections_built, Intersections, Search, Surface,
+};
 pub use places::{places, Places};
 
 /// How the analysis welds vertices (SPEC 3).
