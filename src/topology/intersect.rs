@@ -166,7 +166,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
 
     // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
     // the faces kept, each with its box and what the walk needs of it.
-    let kept: Vec<(Box3, Face)> = (0..nt as u32)
+    let (boxes, kept): (Vec<Box3>, Vec<Face>) = (0..nt as u32)
         .into_par_iter()
         .with_min_len(4096)
         .filter_map(|t| {
@@ -181,14 +181,10 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
             };
             Some((tree::box_of(&[a, b, c]), face))
         })
-        .collect();
-    let boxes: Vec<Box3> = kept.par_iter().with_min_len(1 << 14).map(|k| k.0).collect();
+        .unzip();
     let order = tree::morton_order(&boxes);
-    let boxes: Vec<Box3> = order
-        .par_iter()
-        .with_min_len(1 << 14)
-        .map(|&i| boxes[i as usize])
-        .collect();
+    let tree = Tree::build(&boxes, &order);
+    drop(boxes);
     // The faces in that order, their vertices renumbered in order of first use and their points
     // copied in that order, so that faces close in the walk find their points close in memory.
     let mut local = vec![u32::MAX; points.len()];
@@ -196,7 +192,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let faces: Vec<Face> = order
         .iter()
         .map(|&i| {
-            let mut face = kept[i as usize].1;
+            let mut face = kept[i as usize];
             face.vertices = face.vertices.map(|v| {
                 let slot = &mut local[v as usize];
                 if *slot == u32::MAX {
@@ -210,8 +206,6 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         .collect();
     drop((kept, order, local, scaled));
     let points = &near;
-    let tree = Tree::build(&boxes);
-    drop(boxes);
 
     let numbers = surface
         .number

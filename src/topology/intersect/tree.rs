@@ -174,25 +174,35 @@ pub(super) struct Tree {
 }
 
 impl Tree {
-    /// The tree over `boxes`, in their order.
-    pub(super) fn build(boxes: &[Box3]) -> Tree {
-        let leaves = boxes
+    /// The tree over `boxes` taken in `order`.
+    pub(super) fn build(boxes: &[Box3], order: &[u32]) -> Tree {
+        let leaves: Vec<Leaf> = order
             .par_chunks(LEAF)
             .with_min_len(1 << 12)
             .map(|chunk| {
                 let mut leaf = [[f32::NAN; LEAF]; 6];
-                for (j, b) in chunk.iter().enumerate() {
+                for (j, &i) in chunk.iter().enumerate() {
                     for c in 0..6 {
-                        leaf[c][j] = b[c];
+                        leaf[c][j] = boxes[i as usize][c];
                     }
                 }
                 leaf
             })
             .collect();
-        let mut levels: Vec<Vec<Box3>> = vec![boxes
-            .par_chunks(LEAF)
+        // A leaf's box: f32 min and max skip the NaNs of free places.
+        let mut levels: Vec<Vec<Box3>> = vec![leaves
+            .par_iter()
             .with_min_len(1 << 12)
-            .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
+            .map(|leaf| {
+                std::array::from_fn(|c| {
+                    let lanes = leaf[c].iter().copied();
+                    if c < 3 {
+                        lanes.fold(f32::NAN, f32::min)
+                    } else {
+                        lanes.fold(f32::NAN, f32::max)
+                    }
+                })
+            })
             .collect()];
         while levels.last().is_some_and(|l| l.len() > 1) {
             let below = levels.last().expect("a level");
@@ -405,9 +415,8 @@ mod tests {
             boxes.push(box_of(&[[0.5; 3], hi, hi]));
         }
         let order = morton_order(&boxes);
-        let sorted: Vec<Box3> = order.iter().map(|&i| boxes[i as usize]).collect();
         let mut found = Pairs(Vec::new());
-        Tree::build(&sorted).walk(&mut found);
+        Tree::build(&boxes, &order).walk(&mut found);
         let mut found: Vec<(u32, u32)> = found
             .0
             .iter()
