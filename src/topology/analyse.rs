@@ -46,14 +46,12 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     };
 
     // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones).
-    let diagonal2 = a.bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
-    // area <= 1e-12 d^2  <=>  |cross|^2 <= (2e-12 d^2)^2
-    let zero_cross2 = (2e-12 * diagonal2).powi(2);
+    let zero_cross2 = zero_area_bound(a.bbox);
     // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly in
     // cache (in input order a shuffled mesh misses it for nearly every corner).
     for t in table.triangles() {
         let [p, q, r] = t.map(|i| points[i as usize]);
-        let cross2 = norm2(normal(p, q, r));
+        let cross2 = cross2(p, q, r);
         if cross2 <= zero_cross2 {
             a.zero_area_faces += 1;
         }
@@ -141,7 +139,19 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     a.shells = shells(&faces, &component_of, &components, &fans.fans);
     a.components = components;
     let manifold = a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0;
-    (a, Built { manifold, ..built })
+    // Each face's patch becomes its component, in place.
+    let mut component = patches.of_face;
+    for c in &mut component {
+        *c = component_of_patch[*c as usize];
+    }
+    (
+        a,
+        Built {
+            manifold,
+            component,
+            ..built
+        },
+    )
 }
 
 /// Faces linked through manifold edges, each face with a parity: flipping the faces with parity
@@ -633,6 +643,18 @@ fn first_faces_flip(
 pub(crate) fn is_flat(volume: f64, bbox: &[[f64; 3]; 2]) -> bool {
     let diagonal = dist2(bbox[0], bbox[1]).sqrt();
     volume.abs() <= 1e-12 * diagonal.powi(3)
+}
+
+/// The largest [`cross2`] of a zero-area face in a mesh with this bounding box: a face's area is at
+/// most 1e-12 x (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`.
+pub(crate) fn zero_area_bound(bbox: Option<[[f64; 3]; 2]>) -> f64 {
+    let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
+    (2e-12 * diagonal2).powi(2)
+}
+
+/// `|(b - a) x (c - a)|^2`: four times the squared area of triangle `a b c`.
+pub(crate) fn cross2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    norm2(normal(a, b, c))
 }
 
 #[cfg(test)]

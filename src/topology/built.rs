@@ -27,6 +27,9 @@ pub struct Built {
     /// Whether the table has no non-manifold edge or vertex (set by the analysis; `false` until
     /// it has looked).
     pub manifold: bool,
+    /// The component (index into [`super::Analysis::components`]) of every table face (set by the
+    /// analysis; empty until it has looked).
+    pub component: Vec<u32>,
 }
 
 /// The faces [`build`] left out of the table, and the vertices no face uses.
@@ -99,6 +102,7 @@ pub fn build(mesh: &Mesh, options: &Options) -> (Built, LeftOut) {
         table,
         source,
         manifold: false,
+        component: Vec::new(),
     };
     (built, left)
 }

@@ -5,11 +5,15 @@
 
 pub(crate) mod analyse;
 pub(crate) mod built;
+pub mod intersect;
 pub(crate) mod nesting;
 mod places;
 
 pub use analyse::{analyse, analyse_keeping};
 pub use built::{build, Built, LeftOut};
+pub use intersect::{
+    intersect, intersections, intersections_built, Intersections, Search, Surface,
+};
 pub use places::{places, Places, NO_SHELL};
 
 /// How the analysis [welds](crate::definitions#welding) vertices.

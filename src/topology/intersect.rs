@@ -1,0 +1,357 @@
+//! Which faces of a mesh **meet**: two faces meet when their closed triangles share a point that is
+//! not a vertex or an edge the two faces share in the welded mesh (crossing, touching, coplanar
+//! overlap; faces on one edge only when they fold onto each other; faces on one vertex when they
+//! have another common point). Zero-area faces are left out, as are faces whose three points are
+//! exactly on a line.
+//!
+//! [`intersect`] counts the pairs of faces of one component that meet (`self_intersections`), the
+//! pairs of components with faces that meet (`intersecting_components`), marks every face involved
+//! and keeps the first pairs up to a cap (the counts stay exact). It runs in two phases:
+//!
+//! - broad (`tree`): a bounding-volume hierarchy of outward-rounded face boxes, walked against
+//!   itself, gives every pair of faces whose boxes overlap, in parallel tasks on the current rayon
+//!   pool for big meshes;
+//! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
+//!   come from the Corner Table's welded vertex ids.
+//!
+//! The predicates are exact as long as no product underflows or overflows; a mesh whose largest
+//! coordinate is beyond 2^±100 is first scaled by a power of two, which changes no sign.
+
+mod meet;
+mod tree;
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+
+use rayon::prelude::*;
+
+use super::analyse::{analyse_keeping, cross2, zero_area_bound};
+use super::Built;
+use super::Options;
+use crate::corner_table::CornerTable;
+use crate::mesh::Mesh;
+use tree::{Box3, Tree, Visit};
+
+/// What the test reads of a mesh: the welded points, the Corner Table of the faces the analysis
+/// keeps, each table face's edge-connected component and which faces to leave out.
+pub struct Surface<'a> {
+    pub points: &'a [[f64; 3]],
+    pub table: &'a CornerTable,
+    /// The component of table face `t`.
+    pub component: &'a (dyn Fn(u32) -> u32 + Sync),
+    /// Whether table face `t` is left out (zero-area faces).
+    pub left_out: &'a (dyn Fn(u32) -> bool + Sync),
+    /// The number of table face `t` in the findings (pairs, involved faces), for instance its input
+    /// face; `None`: its table number. The kept pairs are the lowest in this numbering.
+    pub number: Option<&'a [u32]>,
+}
+
+/// How far the search goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Search {
+    /// How many pairs of faces that meet are kept in [`Intersections::pairs`].
+    pub kept_pairs: usize,
+    /// Stop at the first pair found (a yes/no answer for a quick check); the counts are then not
+    /// complete.
+    pub first_only: bool,
+}
+
+impl Default for Search {
+    fn default() -> Search {
+        Search {
+            kept_pairs: 100,
+            first_only: false,
+        }
+    }
+}
+
+/// The faces that meet.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Intersections {
+    /// Unordered pairs of faces of one component that meet.
+    pub self_intersections: usize,
+    /// Unordered pairs of faces of different components that meet.
+    pub pairs_between: usize,
+    /// Pairs `[a, b]` (`a < b`) of components with at least one pair of faces that meet, sorted.
+    pub component_pairs: Vec<[u32; 2]>,
+    /// The lowest pairs `[f, g]` (`f < g`, sorted) of faces that meet, within or between components,
+    /// at most [`Search::kept_pairs`] of them.
+    pub pairs: Vec<[u32; 2]>,
+    /// The search stopped at its first pair ([`Search::first_only`]): the counts are not complete.
+    pub stopped: bool,
+    /// One bit per face: the face meets another.
+    involved: Vec<u64>,
+}
+
+impl Intersections {
+    /// Pairs of components that meet.
+    pub fn intersecting_components(&self) -> usize {
+        self.component_pairs.len()
+    }
+
+    /// Whether face `t` meets another face.
+    pub fn involves(&self, t: u32) -> bool {
+        self.involved
+            .get(t as usize / 64)
+            .is_some_and(|w| w & (1 << (t % 64)) != 0)
+    }
+
+    /// How many faces meet another face.
+    pub fn involved_faces(&self) -> usize {
+        self.involved.iter().map(|w| w.count_ones() as usize).sum()
+    }
+
+    /// The components that component `c` meets, ascending.
+    pub fn met_by(&self, c: u32) -> Vec<u32> {
+        let mut met: Vec<u32> = self
+            .component_pairs
+            .iter()
+            .filter_map(|&[a, b]| match (a == c, b == c) {
+                (true, _) => Some(b),
+                (_, true) => Some(a),
+                _ => None,
+            })
+            .collect();
+        met.sort_unstable();
+        met
+    }
+}
+
+/// The faces that meet in `mesh` after the analysis's weld (`options`), with the faces, pairs and
+/// components numbered as in the mesh and in [`crate::Analysis::components`]. Welds, leaves out
+/// invalid and degenerate faces and builds the table and components exactly as the analysis does;
+/// zero-area faces are left out.
+pub fn intersections(mesh: &Mesh, options: &Options, search: &Search) -> Intersections {
+    let (analysis, built) = analyse_keeping(mesh, options);
+    intersections_built(&built, analysis.bbox, search)
+}
+
+/// [`intersections`] of a mesh already analysed, from what the analysis built and its bounding box
+/// ([`crate::Analysis::bbox`], which sets the zero-area threshold).
+pub fn intersections_built(
+    built: &Built,
+    bbox: Option<[[f64; 3]; 2]>,
+    search: &Search,
+) -> Intersections {
+    let bound = zero_area_bound(bbox);
+    let points = &built.welded.positions;
+    let triangles = built.table.triangles();
+    let surface = Surface {
+        points,
+        table: &built.table,
+        component: &|t| built.component[t as usize],
+        left_out: &|t| {
+            let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+            cross2(a, b, c) <= bound
+        },
+        number: Some(&built.source),
+    };
+    intersect(&surface, search)
+}
+
+/// A face in the sorted order of the broad phase.
+#[derive(Debug, Clone, Copy)]
+struct Face {
+    vertices: [u32; 3],
+    /// The face's number in the findings.
+    face: u32,
+    component: u32,
+}
+
+/// Finds the faces of `surface` that meet.
+pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
+    let nt = surface.table.triangle_count();
+    let triangles = surface.table.triangles();
+    let scaled = scaled_points(surface.points);
+    let points: &[[f64; 3]] = scaled.as_deref().unwrap_or(surface.points);
+    let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
+
+    // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
+    // the faces kept, each with its box and what the walk needs of it.
+    let (boxes, kept): (Vec<Box3>, Vec<Face>) = (0..nt as u32)
+        .into_par_iter()
+        .with_min_len(4096)
+        .filter_map(|t| {
+            let [a, b, c] = corners(t);
+            if (surface.left_out)(t) || meet::collinear(a, b, c) {
+                return None;
+            }
+            let face = Face {
+                vertices: triangles[t as usize],
+                face: surface.number.map_or(t, |n| n[t as usize]),
+                component: (surface.component)(t),
+            };
+            Some((tree::box_of(&[a, b, c]), face))
+        })
+        .unzip();
+    let order = tree::morton_order(&boxes);
+    let tree = Tree::build(&boxes, &order);
+    drop(boxes);
+    // The faces in that order, their vertices renumbered in order of first use and their points
+    // copied in that order, so that faces close in the walk find their points close in memory.
+    let mut local = vec![u32::MAX; points.len()];
+    let mut near: Vec<[f64; 3]> = Vec::with_capacity(kept.len() / 2 + 3);
+    let faces: Vec<Face> = order
+        .iter()
+        .map(|&i| {
+            let mut face = kept[i as usize];
+            face.vertices = face.vertices.map(|v| {
+                let slot = &mut local[v as usize];
+                if *slot == u32::MAX {
+                    *slot = near.len() as u32;
+                    near.push(points[v as usize]);
+                }
+                *slot
+            });
+            face
+        })
+        .collect();
+    drop((kept, order, local, scaled));
+    let points = &near;
+
+    let numbers = surface
+        .number
+        .map_or(nt, |n| n.iter().map(|&x| x as usize + 1).max().unwrap_or(0));
+    let involved: Vec<AtomicU64> = (0..numbers.div_ceil(64))
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    let stop = AtomicBool::new(false);
+    let shared = Shared {
+        points,
+        faces: &faces,
+        involved: &involved,
+        stop: &stop,
+        search: *search,
+    };
+    let mut finder = Finder {
+        shared: &shared,
+        tally: Tally::default(),
+    };
+    tree.walk(&mut finder);
+
+    let mut tally = finder.tally;
+    tally.tidy(search.kept_pairs);
+    Intersections {
+        self_intersections: tally.within,
+        pairs_between: tally.between,
+        component_pairs: tally.components,
+        pairs: tally.pairs,
+        stopped: stop.load(Relaxed),
+        involved: involved.into_iter().map(AtomicU64::into_inner).collect(),
+    }
+}
+
+/// The points times a power of two that brings the largest coordinate near 1, when it is beyond
+/// 2^100 or below 2^-100 (where products of coordinates could overflow or underflow, or boxes
+/// leave the range of `f32`); `None` when they are fine as they are. Scaling by a power of two is
+/// exact, so no sign changes.
+fn scaled_points(points: &[[f64; 3]]) -> Option<Vec<[f64; 3]>> {
+    let largest = points
+        .iter()
+        .flatten()
+        .map(|x| x.abs())
+        .filter(|x| x.is_finite())
+        .fold(0.0f64, f64::max);
+    let (lo, hi) = (2f64.powi(-100), 2f64.powi(100));
+    if largest == 0.0 || (lo..=hi).contains(&largest) {
+        return None;
+    }
+    // 2^-e with e the exponent of the largest coordinate, in two factors so neither overflows.
+    let e = largest.log2().floor() as i32;
+    let (s1, s2) = (2f64.powi(-e / 2), 2f64.powi(-(e - e / 2)));
+    Some(points.iter().map(|p| p.map(|x| x * s1 * s2)).collect())
+}
+
+/// What every task of the walk reads and the flags it sets.
+struct Shared<'a> {
+    points: &'a [[f64; 3]],
+    faces: &'a [Face],
+    involved: &'a [AtomicU64],
+    stop: &'a AtomicBool,
+    search: Search,
+}
+
+/// One task's findings.
+#[derive(Default)]
+struct Tally {
+    within: usize,
+    between: usize,
+    /// Component pairs, deduplicated whenever the list doubles.
+    components: Vec<[u32; 2]>,
+    components_tidy: usize,
+    /// Face pairs, cut back to the lowest `kept_pairs` whenever the list doubles.
+    pairs: Vec<[u32; 2]>,
+}
+
+impl Tally {
+    fn tidy(&mut self, kept: usize) {
+        self.components.sort_unstable();
+        self.components.dedup();
+        self.components_tidy = self.components.len();
+        self.pairs.sort_unstable();
+        self.pairs.truncate(kept);
+    }
+}
+
+struct Finder<'a> {
+    shared: &'a Shared<'a>,
+    tally: Tally,
+}
+
+impl Visit for Finder<'_> {
+    fn fork(&self) -> Self {
+        Finder {
+            shared: self.shared,
+            tally: Tally::default(),
+        }
+    }
+
+    fn merge(&mut self, other: Self) {
+        let (t, o) = (&mut self.tally, other.tally);
+        t.within += o.within;
+        t.between += o.between;
+        t.components.extend(o.components);
+        t.pairs.extend(o.pairs);
+        t.tidy(self.shared.search.kept_pairs);
+    }
+
+    fn pair(&mut self, a: u32, b: u32) {
+        let s = self.shared;
+        let (fa, fb) = (&s.faces[a as usize], &s.faces[b as usize]);
+        let corners = |f: &Face| f.vertices.map(|v| s.points[v as usize]);
+        if !meet::faces_meet(fa.vertices, corners(fa), fb.vertices, corners(fb)) {
+            return;
+        }
+        let t = &mut self.tally;
+        if fa.component == fb.component {
+            t.within += 1;
+        } else {
+            t.between += 1;
+            let (x, y) = (fa.component, fb.component);
+            t.components.push([x.min(y), x.max(y)]);
+            if t.components.len() >= 2 * t.components_tidy.max(512) {
+                t.components.sort_unstable();
+                t.components.dedup();
+                t.components_tidy = t.components.len();
+            }
+        }
+        for f in [fa.face, fb.face] {
+            s.involved[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
+        }
+        let kept = s.search.kept_pairs;
+        if kept > 0 {
+            let (f, g) = (fa.face, fb.face);
+            t.pairs.push([f.min(g), f.max(g)]);
+            if t.pairs.len() >= kept.max(256).saturating_mul(2) {
+                t.pairs.sort_unstable();
+                t.pairs.truncate(kept);
+            }
+        }
+        if s.search.first_only {
+            s.stop.store(true, Relaxed);
+        }
+    }
+
+    fn done(&self) -> bool {
+        self.shared.search.first_only && self.shared.stop.load(Relaxed)
+    }
+}
