@@ -22,9 +22,14 @@
 //! [`CornerTable::is_consistent`] says whether the pair traverses the edge in opposite directions
 //! (a bit per corner, found during the build, so walks never re-read `V` to decide it).
 //!
-//! `O` is built in linear time: a counting sort of corners by the lower vertex of their opposite edge,
-//! then a sort of each (small) bucket by the higher vertex. Runs of equal edges are the edges; their
-//! lengths are the valences.
+//! `O` is built in linear time from two counting sorts of faces, not of corners: the faces by their
+//! lowest vertex, and the corner at each face's lowest vertex (whose opposite edge misses that vertex)
+//! by the lower vertex of its opposite edge. The corners whose opposite edge has lower vertex `x` are
+//! then the two other corners of each face whose lowest vertex is `x`, and the corners of the second
+//! sort's bucket `x`; each such bucket, sorted by the higher vertex, holds the edges at `x` as runs
+//! of equal keys whose lengths are the valences. Faces that come already ordered by their lowest
+//! vertex (as the analysis orders them) skip the first sort. Buckets of different vertices are
+//! independent, so a big table is paired on every thread of the current rayon pool.
 
 /// `O[c]` for a corner whose opposite edge bounds three or more faces.
 pub const NON_MANIFOLD: u32 = u32::MAX;
@@ -63,101 +68,51 @@ impl CornerTable {
 
     /// [`CornerTable::build`], keeping the triangle list as `V` instead of copying it.
     pub fn from_triangles(triangles: Vec<[u32; 3]>, vertex_count: usize) -> CornerTable {
-        assert!(
-            triangles.len() <= MAX_TRIANGLES,
-            "{} triangles exceed the corner table's limit of {MAX_TRIANGLES}",
-            triangles.len()
-        );
-        assert!(
-            vertex_count <= MAX_VERTICES,
-            "{vertex_count} vertices exceed the corner table's limit of {MAX_VERTICES}"
-        );
-        let corners = 3 * triangles.len();
-
-        // Counting sort of corners by the lower vertex of their opposite edge.
-        let mut start = vec![0u32; vertex_count + 1];
+        check_size(&triangles, vertex_count);
+        let mut lowest = Bounds::new(vertex_count);
         for t in &triangles {
-            for k in 0..3 {
-                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                start[a.min(b) as usize + 1] += 1;
-            }
+            lowest.count(lowest_and_middle(t).0);
         }
-        for i in 0..vertex_count {
-            start[i + 1] += start[i];
+        lowest.open();
+        let mut order = vec![0u32; triangles.len()];
+        for (f, t) in triangles.iter().enumerate() {
+            order[lowest.slot(lowest_and_middle(t).0)] = f as u32;
         }
-        // Each slot holds `higher vertex << 33 | rising << 32 | corner`: sorting a bucket groups the
-        // corners by edge; `rising` says the corner's face runs the edge from its lower vertex up.
-        let mut keys = vec![0u64; corners];
-        let mut fill = start.clone();
-        for (i, t) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-                let slot = &mut fill[a.min(b) as usize];
-                let rising = u64::from(a < b) << 32;
-                keys[*slot as usize] = (u64::from(a.max(b)) << 33) | rising | (3 * i + k) as u64;
-                *slot += 1;
-            }
-        }
-        drop(fill);
+        let apex = Apexes::of(&triangles, 0, vertex_count);
+        let groups = Groups {
+            order: Some(&order),
+            lowest: lowest.close(),
+            apexes: std::slice::from_ref(&apex),
+        };
+        let table = pair(&triangles, vertex_count, &groups, false);
+        table.with_triangles(triangles)
+    }
 
-        let mut o = vec![0u32; corners];
-        let mut same_direction = vec![0u64; corners.div_ceil(64)];
-        let mut edge_count = 0;
-        let mut border_count = 0;
-        let mut nm_corners = Vec::new();
-        let mut nm_offsets = vec![0u32];
-        for w in start.windows(2) {
-            let bucket = &mut keys[w[0] as usize..w[1] as usize];
-            if bucket.len() > 1 {
-                bucket.sort_unstable();
-            }
-            let mut i = 0;
-            while i < bucket.len() {
-                let hi = bucket[i] >> 33;
-                let mut j = i + 1;
-                while j < bucket.len() && bucket[j] >> 33 == hi {
-                    j += 1;
-                }
-                let corner = |k: usize| bucket[k] as u32;
-                match j - i {
-                    1 => {
-                        o[corner(i) as usize] = corner(i);
-                        border_count += 1;
-                    }
-                    2 => {
-                        let (a, b) = (corner(i), corner(i + 1));
-                        o[a as usize] = b;
-                        o[b as usize] = a;
-                        if (bucket[i] ^ bucket[i + 1]) & (1 << 32) == 0 {
-                            for c in [a, b] {
-                                same_direction[c as usize / 64] |= 1 << (c % 64);
-                            }
-                        }
-                    }
-                    _ => {
-                        for k in i..j {
-                            o[corner(k) as usize] = NON_MANIFOLD;
-                            nm_corners.push(corner(k));
-                        }
-                        let first = nm_corners.len() - (j - i);
-                        nm_corners[first..].sort_unstable();
-                        nm_offsets.push(nm_corners.len() as u32);
-                    }
-                }
-                edge_count += 1;
-                i = j;
-            }
-        }
-        CornerTable {
-            v: triangles,
-            o,
-            same_direction,
-            vertex_count,
-            edge_count,
-            border_count,
-            nm_corners,
-            nm_offsets,
-        }
+    /// The table of triangles already ordered by their lowest vertex, given the bounds of each
+    /// vertex's faces (`lowest[x]..lowest[x + 1]`) and, in runs, the corners at the faces' lowest
+    /// vertices grouped by the lower vertex of their opposite edge (what the analysis sorts while
+    /// it welds the faces). With `parallel`, the buckets are paired on every thread of the current
+    /// rayon pool; the table is the same.
+    pub(crate) fn from_grouped(
+        triangles: Vec<[u32; 3]>,
+        vertex_count: usize,
+        lowest: &[u32],
+        apexes: &[Apexes],
+        parallel: bool,
+    ) -> CornerTable {
+        check_size(&triangles, vertex_count);
+        let groups = Groups {
+            order: None,
+            lowest,
+            apexes,
+        };
+        let table = pair(&triangles, vertex_count, &groups, parallel);
+        table.with_triangles(triangles)
+    }
+
+    fn with_triangles(mut self, triangles: Vec<[u32; 3]>) -> CornerTable {
+        self.v = triangles;
+        self
     }
 
     /// Reverses the winding of every triangle `t` with `flip[t]`: its corners 1 and 2 swap places,
@@ -428,6 +383,287 @@ impl CornerTable {
     pub fn is_consistent(&self, c: u32) -> bool {
         self.same_direction[c as usize / 64] & (1 << (c % 64)) == 0
     }
+}
+
+fn check_size(triangles: &[[u32; 3]], vertex_count: usize) {
+    assert!(
+        triangles.len() <= MAX_TRIANGLES,
+        "{} triangles exceed the corner table's limit of {MAX_TRIANGLES}",
+        triangles.len()
+    );
+    assert!(
+        vertex_count <= MAX_VERTICES,
+        "{vertex_count} vertices exceed the corner table's limit of {MAX_VERTICES}"
+    );
+}
+
+/// A triangle's lowest vertex, the place `k` of that vertex in it, and its middle vertex (the
+/// lower end of the edge opposite corner `k`).
+#[inline]
+pub(crate) fn lowest_and_middle(t: &[u32; 3]) -> (usize, usize, usize) {
+    let k = if t[0] < t[1] {
+        if t[0] < t[2] {
+            0
+        } else {
+            2
+        }
+    } else if t[1] < t[2] {
+        1
+    } else {
+        2
+    };
+    let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+    (t[k] as usize, k, a.min(b) as usize)
+}
+
+/// A counting sort's bounds over keys `0..n`: count each key, [`Bounds::open`], take a slot per
+/// key, [`Bounds::close`]; then key `x`'s items are at `bounds[x]..bounds[x + 1]`.
+pub(crate) struct Bounds(Vec<u32>);
+
+impl Bounds {
+    pub(crate) fn new(n: usize) -> Bounds {
+        Bounds(vec![0; n + 2])
+    }
+
+    #[inline]
+    pub(crate) fn count(&mut self, key: usize) {
+        self.0[key + 2] += 1;
+    }
+
+    /// After counting: `self.0[x + 1]` becomes the first slot of key `x`.
+    pub(crate) fn open(&mut self) {
+        for i in 2..self.0.len() {
+            self.0[i] += self.0[i - 1];
+        }
+    }
+
+    #[inline]
+    pub(crate) fn slot(&mut self, key: usize) -> usize {
+        let slot = &mut self.0[key + 1];
+        *slot += 1;
+        *slot as usize - 1
+    }
+
+    /// After every slot is taken, `self.0[x + 1]` is the end of key `x`, so `[..n + 1]` holds
+    /// each key's start followed by the end.
+    pub(crate) fn close(&self) -> &[u32] {
+        &self.0[..self.0.len() - 1]
+    }
+
+    /// The number of keys counted (after [`Bounds::open`]).
+    pub(crate) fn total(&self) -> usize {
+        self.0[self.0.len() - 1] as usize
+    }
+
+    /// [`Bounds::close`], owned.
+    pub(crate) fn into_bounds(mut self) -> Vec<u32> {
+        self.0.pop();
+        self.0
+    }
+}
+
+/// The corner at the lowest vertex of each of a run of faces, grouped by the lower vertex of its
+/// opposite edge (the face's middle vertex): `corners[bounds[x]..bounds[x + 1]]` for vertex `x`.
+pub(crate) struct Apexes {
+    corners: Vec<u32>,
+    bounds: Vec<u32>,
+}
+
+impl Apexes {
+    /// The apexes of `run`, faces numbered from `first`, by a counting sort.
+    pub(crate) fn of(run: &[[u32; 3]], first: usize, vertex_count: usize) -> Apexes {
+        let mut bounds = Bounds::new(vertex_count);
+        for t in run {
+            bounds.count(lowest_and_middle(t).2);
+        }
+        bounds.open();
+        let mut corners = vec![0u32; run.len()];
+        for (i, t) in run.iter().enumerate() {
+            let (_, k, middle) = lowest_and_middle(t);
+            corners[bounds.slot(middle)] = (3 * (first + i) + k) as u32;
+        }
+        Apexes {
+            corners,
+            bounds: bounds.into_bounds(),
+        }
+    }
+
+    fn of_vertex(&self, x: usize) -> &[u32] {
+        &self.corners[self.bounds[x] as usize..self.bounds[x + 1] as usize]
+    }
+}
+
+/// What [`pair`] reads: faces by lowest vertex (through `order`, or in place when `None`) with
+/// `lowest[x]..lowest[x + 1]` the faces of vertex `x`, and the apexes of every run of faces.
+struct Groups<'a> {
+    order: Option<&'a [u32]>,
+    lowest: &'a [u32],
+    apexes: &'a [Apexes],
+}
+
+/// How many faces a thread pairs at once (the buckets of whole vertices).
+const PART_FACES: usize = 1 << 16;
+
+/// One range of vertices' buckets paired: what a part of [`pair`] found.
+#[derive(Default)]
+struct Paired {
+    edge_count: usize,
+    border_count: usize,
+    /// Corners whose manifold edge is traversed in the same direction by both faces.
+    same_direction: Vec<u32>,
+    nm_corners: Vec<u32>,
+    /// Ends of each non-manifold edge's corners in `nm_corners`.
+    nm_ends: Vec<u32>,
+    /// `O` of corners outside the part's own faces (an apex of an earlier part's face), as
+    /// (corner, opposite).
+    foreign: Vec<(u32, u32)>,
+}
+
+/// Pairs the corners of each vertex's bucket (the module docs) into `O`, with the counts and the
+/// non-manifold edges; `v` is left empty for the caller to fill.
+///
+/// In parallel the vertices are cut into ranges of about [`PART_FACES`] faces; a range's faces are
+/// a run of the triangles (they are ordered by lowest vertex), so each part writes the `O` of its
+/// own faces in place, and hands back the few it found for corners of earlier faces.
+fn pair(
+    triangles: &[[u32; 3]],
+    vertex_count: usize,
+    groups: &Groups,
+    parallel: bool,
+) -> CornerTable {
+    let corners = 3 * triangles.len();
+    let mut o = vec![0u32; corners];
+    let key = |c: u32| {
+        let t = &triangles[c as usize / 3];
+        let k = c as usize % 3;
+        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+        (u64::from(a.max(b)) << 33) | (u64::from(a < b) << 32) | u64::from(c)
+    };
+    // Pairs the buckets of `vertices`, whose own corners are `own` (starting at corner `base`).
+    let pair_range = |vertices: std::ops::Range<usize>, own: &mut [u32], base: usize| -> Paired {
+        let mut out = Paired::default();
+        let mut set = |out: &mut Paired, c: u32, to: u32| match own
+            .get_mut((c as usize).wrapping_sub(base))
+        {
+            Some(slot) => *slot = to,
+            None => out.foreign.push((c, to)),
+        };
+        let mut bucket: Vec<u64> = Vec::new();
+        for x in vertices {
+            bucket.clear();
+            for i in groups.lowest[x] as usize..groups.lowest[x + 1] as usize {
+                let f = groups.order.map_or(i, |order| order[i] as usize);
+                let t = &triangles[f];
+                // With `x = t[k]` the lowest vertex: corner k + 1 faces the edge from t[k + 2]
+                // down to x, corner k + 2 the edge from x up to t[k + 1].
+                let (_, k, _) = lowest_and_middle(t);
+                let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+                let c = 3 * f as u32;
+                bucket.push((u64::from(t[k2]) << 33) | u64::from(c + k1 as u32));
+                bucket.push((u64::from(t[k1]) << 33) | (1 << 32) | u64::from(c + k2 as u32));
+            }
+            for apexes in groups.apexes {
+                bucket.extend(apexes.of_vertex(x).iter().map(|&c| key(c)));
+            }
+            if bucket.len() > 1 {
+                bucket.sort_unstable();
+            }
+            let mut i = 0;
+            while i < bucket.len() {
+                let hi = bucket[i] >> 33;
+                let mut j = i + 1;
+                while j < bucket.len() && bucket[j] >> 33 == hi {
+                    j += 1;
+                }
+                let corner = |k: usize| bucket[k] as u32;
+                match j - i {
+                    1 => {
+                        set(&mut out, corner(i), corner(i));
+                        out.border_count += 1;
+                    }
+                    2 => {
+                        let (a, b) = (corner(i), corner(i + 1));
+                        set(&mut out, a, b);
+                        set(&mut out, b, a);
+                        if (bucket[i] ^ bucket[i + 1]) & (1 << 32) == 0 {
+                            out.same_direction.extend([a, b]);
+                        }
+                    }
+                    _ => {
+                        let first = out.nm_corners.len();
+                        for k in i..j {
+                            set(&mut out, corner(k), NON_MANIFOLD);
+                            out.nm_corners.push(corner(k));
+                        }
+                        out.nm_corners[first..].sort_unstable();
+                        out.nm_ends.push(out.nm_corners.len() as u32);
+                    }
+                }
+                out.edge_count += 1;
+                i = j;
+            }
+        }
+        out
+    };
+    let parts: Vec<Paired> =
+        if parallel && groups.order.is_none() && triangles.len() > 2 * PART_FACES {
+            use rayon::prelude::*;
+            // Vertex ranges holding about PART_FACES faces each (a vertex's faces are never split),
+            // with their own corners cut from `o`.
+            let mut cuts = vec![0usize];
+            let mut next = PART_FACES;
+            for x in 0..vertex_count {
+                if groups.lowest[x + 1] as usize >= next {
+                    cuts.push(x + 1);
+                    next = groups.lowest[x + 1] as usize + PART_FACES;
+                }
+            }
+            if *cuts.last().expect("starts at 0") != vertex_count {
+                cuts.push(vertex_count);
+            }
+            let mut pieces = Vec::with_capacity(cuts.len());
+            let mut rest = o.as_mut_slice();
+            for w in cuts.windows(2) {
+                let faces = (groups.lowest[w[1]] - groups.lowest[w[0]]) as usize;
+                let (own, tail) = rest.split_at_mut(3 * faces);
+                pieces.push((w[0]..w[1], own, 3 * groups.lowest[w[0]] as usize));
+                rest = tail;
+            }
+            pieces
+                .into_par_iter()
+                .map(|(vertices, own, base)| pair_range(vertices, own, base))
+                .collect()
+        } else {
+            vec![pair_range(0..vertex_count, &mut o, 0)]
+        };
+    let mut same_direction = vec![0u64; corners.div_ceil(64)];
+    let mut table = CornerTable {
+        v: Vec::new(),
+        o,
+        same_direction: Vec::new(),
+        vertex_count,
+        edge_count: 0,
+        border_count: 0,
+        nm_corners: Vec::new(),
+        nm_offsets: vec![0],
+    };
+    for part in parts {
+        table.edge_count += part.edge_count;
+        table.border_count += part.border_count;
+        for c in part.same_direction {
+            same_direction[c as usize / 64] |= 1 << (c % 64);
+        }
+        for (c, to) in part.foreign {
+            table.o[c as usize] = to;
+        }
+        let base = table.nm_corners.len() as u32;
+        table
+            .nm_offsets
+            .extend(part.nm_ends.iter().map(|&e| base + e));
+        table.nm_corners.extend(part.nm_corners);
+    }
+    table.same_direction = same_direction;
+    table
 }
 
 #[cfg(test)]
