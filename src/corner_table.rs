@@ -462,6 +462,24 @@ impl Bounds {
     }
 }
 
+/// Sorts a bucket: by insertion when small (a vertex's bucket usually holds about six corners),
+/// else by the library sort.
+fn sort_small(bucket: &mut [u64]) {
+    if bucket.len() > 16 {
+        bucket.sort_unstable();
+        return;
+    }
+    for i in 1..bucket.len() {
+        let key = bucket[i];
+        let mut j = i;
+        while j > 0 && bucket[j - 1] > key {
+            bucket[j] = bucket[j - 1];
+            j -= 1;
+        }
+        bucket[j] = key;
+    }
+}
+
 /// The corner at the lowest vertex of each of a run of faces, grouped by the lower vertex of its
 /// opposite edge (the face's middle vertex): `corners[bounds[x]..bounds[x + 1]]` for vertex `x`.
 pub(crate) struct Apexes {
@@ -565,9 +583,7 @@ fn pair(
             for apexes in groups.apexes {
                 bucket.extend(apexes.of_vertex(x).iter().map(|&c| key(c)));
             }
-            if bucket.len() > 1 {
-                bucket.sort_unstable();
-            }
+            sort_small(&mut bucket);
             let mut i = 0;
             while i < bucket.len() {
                 let hi = bucket[i] >> 33;

@@ -80,22 +80,14 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     for (p, &orientable) in patches.orientable.iter().enumerate() {
         components[component_of_patch[p] as usize].orientable &= orientable;
     }
-    for t in 0..table.triangle_count() as u32 {
-        components[component_of(t)].faces += 1;
-    }
     let mut inconsistent = vec![0usize; component_count];
-    for (p, &n) in patches.inconsistent.iter().enumerate() {
-        inconsistent[component_of_patch[p] as usize] += n;
-    }
-    for c in 0..table.corner_count() as u32 {
-        let comp = &mut components[component_of(CornerTable::t(c))];
-        let o = table.o(c);
-        if o == c {
-            comp.edges += 1;
-            comp.border_edges += 1;
-        } else if o != NON_MANIFOLD && c < o {
-            comp.edges += 1;
-        }
+    for (p, counts) in patches.counts.iter().enumerate() {
+        let comp = component_of_patch[p] as usize;
+        inconsistent[comp] += counts.inconsistent;
+        let c = &mut components[comp];
+        c.faces += counts.faces;
+        c.edges += counts.manifold_edges + counts.border_edges;
+        c.border_edges += counts.border_edges;
     }
     for corners in table.nonmanifold_edges() {
         let comp = &mut components[component_of(CornerTable::t(corners[0]))];
@@ -160,8 +152,18 @@ struct Patches {
     of_face: Vec<u32>,
     flip: Vec<bool>,
     orientable: Vec<bool>,
-    /// Inconsistent (same-direction) manifold edges per patch.
-    inconsistent: Vec<usize>,
+    /// What each patch holds, counted during the walk.
+    counts: Vec<PatchCounts>,
+}
+
+/// A patch's faces and edges (each manifold edge once, from its lower corner), and its
+/// inconsistent (same-direction) manifold edges.
+#[derive(Debug, Clone, Copy, Default)]
+struct PatchCounts {
+    faces: usize,
+    manifold_edges: usize,
+    border_edges: usize,
+    inconsistent: usize,
 }
 
 fn walk_patches(table: &CornerTable) -> Patches {
@@ -169,9 +171,10 @@ fn walk_patches(table: &CornerTable) -> Patches {
     // reaching a neighbour costs one memory access.
     const FLIP: u32 = 1 << 31;
     let nt = table.triangle_count();
+    let o = table.opposites();
     let mut state = vec![UNSET; nt];
     let mut orientable = Vec::new();
-    let mut inconsistent = Vec::new();
+    let mut counts = Vec::new();
     let mut stack = Vec::new();
     for seed in 0..nt {
         if state[seed] != UNSET {
@@ -179,16 +182,25 @@ fn walk_patches(table: &CornerTable) -> Patches {
         }
         let id = orientable.len() as u32;
         let mut ok = true;
-        let mut same_direction = 0;
+        let mut n = PatchCounts::default();
         state[seed] = id;
         stack.push(seed as u32);
         while let Some(t) = stack.pop() {
+            n.faces += 1;
             let flip = state[t as usize] & FLIP;
             for c in 3 * t..3 * t + 3 {
-                let Some(b) = table.opposite(c) else { continue };
+                let b = o[c as usize];
+                if b == c {
+                    n.border_edges += 1;
+                    continue;
+                }
+                if b == NON_MANIFOLD {
+                    continue;
+                }
                 let u = CornerTable::t(b) as usize;
                 let consistent = table.is_consistent(c);
-                same_direction += usize::from(!consistent && c < b);
+                n.manifold_edges += usize::from(c < b);
+                n.inconsistent += usize::from(!consistent && c < b);
                 let want = id | if consistent { flip } else { flip ^ FLIP };
                 if state[u] == UNSET {
                     state[u] = want;
@@ -199,7 +211,7 @@ fn walk_patches(table: &CornerTable) -> Patches {
             }
         }
         orientable.push(ok);
-        inconsistent.push(same_direction);
+        counts.push(n);
     }
     let flip = state.iter().map(|&s| s & FLIP != 0).collect();
     for s in &mut state {
@@ -209,7 +221,7 @@ fn walk_patches(table: &CornerTable) -> Patches {
         of_face: state,
         flip,
         orientable,
-        inconsistent,
+        counts,
     }
 }
 
@@ -265,17 +277,30 @@ pub(crate) fn union(parent: &mut [u32], a: u32, b: u32) {
 }
 
 /// Extra copies of faces with the same three vertices. Copies of `{x < y < z}` all bound the edge
-/// `y-z` with `x` as the opposite vertex, so each set is counted once, on that edge.
+/// `y-z` with `x` as the opposite vertex, so each set is counted once, on that edge: at a manifold
+/// edge the two faces' corners at their lowest vertices face each other with one vertex; at a
+/// non-manifold edge the repeated lowest vertices among its faces' corners are the extra copies.
 fn count_duplicates(table: &CornerTable) -> usize {
     let mut count = 0;
-    let edge_min = |c: u32| table.v(CornerTable::n(c)).min(table.v(CornerTable::p(c)));
-    for c in 0..table.corner_count() as u32 {
-        if let Some(b) = table.opposite(c) {
-            if c < b && table.v(c) == table.v(b) && table.v(c) < edge_min(c) {
-                count += 1;
+    // Only a face's corner at its lowest vertex has its vertex below both ends of its edge.
+    for (t, f) in table.triangles().iter().enumerate() {
+        let k = if f[0] < f[1] {
+            if f[0] < f[2] {
+                0
+            } else {
+                2
             }
+        } else if f[1] < f[2] {
+            1
+        } else {
+            2
+        };
+        let c = (3 * t + k) as u32;
+        if let Some(b) = table.opposite(c) {
+            count += usize::from(c < b && table.v(b) == f[k]);
         }
     }
+    let edge_min = |c: u32| table.v(CornerTable::n(c)).min(table.v(CornerTable::p(c)));
     let mut apex = Vec::new();
     for corners in table.nonmanifold_edges() {
         let low = edge_min(corners[0]);
@@ -359,10 +384,21 @@ fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans 
         }
     };
 
-    for c in 0..nc as u32 {
-        if test_and_set(&mut visited, c) {
+    // The unvisited corners in order, found a word of `visited` at a time (most corners are
+    // visited by the walk of a fan started at an earlier one).
+    let mut next = 0usize;
+    while next < nc {
+        let word = visited[next / 64] | ((1u64 << (next % 64)) - 1);
+        if word == u64::MAX {
+            next = (next / 64 + 1) * 64;
             continue;
         }
+        let c = ((next / 64) * 64 + (!word).trailing_zeros() as usize) as u32;
+        if c as usize >= nc {
+            break;
+        }
+        next = c as usize + 1;
+        test_and_set(&mut visited, c);
         let v = table.v(c) as usize;
         let comp = component_of(CornerTable::t(c));
         if vertices_per_component.len() <= comp {
@@ -789,5 +825,59 @@ mod tests {
         assert_eq!(a.unreferenced_vertices, 1);
         // The copy of 0-2-1 puts three faces on edges 0-1, 1-2 and 2-0.
         assert_eq!(a.nonmanifold_edges, 3);
+    }
+
+    /// Duplicates counted corner by corner over every edge (what `count_duplicates` did before it
+    /// looked only at lowest corners): the reference for the test below.
+    fn duplicates_by_corners(table: &CornerTable) -> usize {
+        let edge_min = |c: u32| table.v(CornerTable::n(c)).min(table.v(CornerTable::p(c)));
+        let mut count = 0;
+        for c in 0..table.corner_count() as u32 {
+            if let Some(b) = table.opposite(c) {
+                if c < b && table.v(c) == table.v(b) && table.v(c) < edge_min(c) {
+                    count += 1;
+                }
+            }
+        }
+        let mut apex = Vec::new();
+        for corners in table.nonmanifold_edges() {
+            let low = edge_min(corners[0]);
+            apex.clear();
+            apex.extend(corners.iter().map(|&c| table.v(c)).filter(|&x| x < low));
+            apex.sort_unstable();
+            count += apex.windows(2).filter(|w| w[0] == w[1]).count();
+        }
+        count
+    }
+
+    /// A pillow (a face and its reversed copy: one duplicate on each of its three manifold edges,
+    /// counted once), four copies of one face (three extra, on non-manifold edges), and random
+    /// small meshes over six vertices, full of repeats in both windings, rotated corners and
+    /// fins: counting at lowest corners agrees with counting at every corner.
+    #[test]
+    fn duplicates_counted_at_lowest_corners() {
+        let pillow = CornerTable::build(&[[0, 1, 2], [1, 0, 2]], 3);
+        assert_eq!(count_duplicates(&pillow), 1);
+        let four = CornerTable::build(&[[0, 1, 2], [1, 2, 0], [2, 1, 0], [0, 2, 1]], 3);
+        assert_eq!(count_duplicates(&four), 3);
+        let mut x = 99u64;
+        for _ in 0..500 {
+            let mut faces = Vec::new();
+            while faces.len() < 12 {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let t = [(x >> 20) % 6, (x >> 30) % 6, (x >> 40) % 6].map(|v| v as u32);
+                if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                    faces.push(t);
+                }
+            }
+            let table = CornerTable::build(&faces, 6);
+            assert_eq!(
+                count_duplicates(&table),
+                duplicates_by_corners(&table),
+                "{faces:?}"
+            );
+        }
     }
 }
