@@ -1,6 +1,9 @@
 //! Topology engine benchmark (issue 2): a closed grid torus of ~1M and ~5M triangles with shuffled
 //! face order, single-threaded. Prints triangles/s for welding, the O-table build and the full
-//! analysis, and the peak heap the analysis allocates beyond the input mesh, per triangle.
+//! analysis, and the peak heap the analysis allocates beyond the input mesh, per triangle; then the
+//! stages of the analysis (the weld, the weld of the same mesh as a triangle soup, the build of the
+//! Corner Table from the mesh, and the walks after it), and for the shuffled 5M torus the analysis on
+//! a pool of two threads beside one (the same analysis, checked).
 //!
 //!     cargo bench --bench engine            # 1M and 5M
 //!     cargo bench --bench engine -- 1       # 1M only
@@ -9,6 +12,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
+use meshvet::topology::build;
 use meshvet::{analyse, weld::weld, CornerTable, Mesh, Options};
 
 #[path = "../tests/shapes/mod.rs"]
@@ -98,6 +102,45 @@ fn bench(label: &str, mesh: &Mesh) {
         "  peak heap beyond the input: {:.1} bytes/triangle",
         extra as f64 / tris
     );
+
+    // Stages: the build (weld, faces sorted and left out, table) and what the walks add.
+    let soup = shapes::soup(mesh);
+    let (t_soup, _) = best(3, || weld(&soup.positions, 0.0));
+    drop(soup);
+    let (t_build, _) = best(3, || build(mesh, &options));
+    println!(
+        "  stages: weld as a soup {:.1} ms ({} positions); build (weld + faces + table) {:.1} ms; \
+         walks and shells (full - build) {:.1} ms",
+        t_soup * 1e3,
+        3 * mesh.triangles.len(),
+        t_build * 1e3,
+        (t_all - t_build) * 1e3
+    );
+}
+
+/// The analysis of one big mesh on one thread and on a pool of two: the weld, the sorts and the
+/// pairing of the table spread over the pool (same analysis, checked).
+fn bench_threads(label: &str, mesh: &Mesh) {
+    let options = Options::default();
+    let (one, a1) = best(3, || analyse(mesh, &options));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a pool of two threads");
+    let (two, a2) = best(3, || pool.install(|| analyse(mesh, &options)));
+    assert_eq!(a1, a2, "two threads give the one-thread analysis");
+    let (b1, _) = best(3, || build(mesh, &options));
+    let (b2, _) = best(3, || pool.install(|| build(mesh, &options)));
+    println!(
+        "{label}: full analysis 1 thread {:.1} ms, 2 threads {:.1} ms: {:.2}x \
+         (build {:.1} -> {:.1} ms: {:.2}x)",
+        one * 1e3,
+        two * 1e3,
+        one / two,
+        b1 * 1e3,
+        b2 * 1e3,
+        b1 / b2
+    );
 }
 
 /// 10,000 unit cubes ("bolts") on a 100 x 100 grid, disjoint or all inside one box: nesting must
@@ -141,6 +184,9 @@ fn main() {
         }
         let mesh = shapes::torus(n, m, Some(0x5eed));
         bench(&format!("torus {millions}M, shuffled faces"), &mesh);
+        if millions == 5 {
+            bench_threads("torus 5M, shuffled faces", &mesh);
+        }
         drop(mesh);
         let mesh = shapes::torus(n, m, None);
         bench(&format!("torus {millions}M, faces in grid order"), &mesh);

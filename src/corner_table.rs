@@ -22,14 +22,14 @@
 //! [`CornerTable::is_consistent`] says whether the pair traverses the edge in opposite directions
 //! (a bit per corner, found during the build, so walks never re-read `V` to decide it).
 //!
-//! `O` is built in linear time from two counting sorts of faces, not of corners: the faces by their
-//! lowest vertex, and the corner at each face's lowest vertex (whose opposite edge misses that vertex)
-//! by the lower vertex of its opposite edge. The corners whose opposite edge has lower vertex `x` are
-//! then the two other corners of each face whose lowest vertex is `x`, and the corners of the second
-//! sort's bucket `x`; each such bucket, sorted by the higher vertex, holds the edges at `x` as runs
-//! of equal keys whose lengths are the valences. Faces that come already ordered by their lowest
-//! vertex (as the analysis orders them) skip the first sort. Buckets of different vertices are
-//! independent, so a big table is paired on every thread of the current rayon pool.
+//! `O` is built in linear time by bucketing corners by the lower vertex of their opposite edge and
+//! sorting each (small) bucket by the higher vertex: runs of equal keys are the edges, their lengths
+//! the valences. Faces in any order ([`CornerTable::build`]) get a counting sort of the corners
+//! themselves. Faces ordered by their lowest vertex (as the analysis orders them) need only a
+//! counting sort of faces: the corners whose opposite edge has lower vertex `x` are the two other
+//! corners of each face whose lowest vertex is `x`, plus the corners at the lowest vertex of faces
+//! whose middle vertex is `x`, grouped by that one sort. Buckets of different vertices are
+//! independent, so a big ordered table is paired on every thread of the current rayon pool.
 
 /// `O[c]` for a corner whose opposite edge bounds three or more faces.
 pub const NON_MANIFOLD: u32 = u32::MAX;
@@ -69,23 +69,33 @@ impl CornerTable {
     /// [`CornerTable::build`], keeping the triangle list as `V` instead of copying it.
     pub fn from_triangles(triangles: Vec<[u32; 3]>, vertex_count: usize) -> CornerTable {
         check_size(&triangles, vertex_count);
-        let mut lowest = Bounds::new(vertex_count);
+        // Faces in any order: a counting sort of the corners themselves by the lower vertex of
+        // their opposite edge, each slot holding the corner's bucket key.
+        let mut lower = Bounds::new(vertex_count);
         for t in &triangles {
-            lowest.count(lowest_and_middle(t).0);
+            for k in 0..3 {
+                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                lower.count(a.min(b) as usize);
+            }
         }
-        lowest.open();
-        let mut order = vec![0u32; triangles.len()];
+        lower.open();
+        let mut keys = vec![0u64; 3 * triangles.len()];
         for (f, t) in triangles.iter().enumerate() {
-            order[lowest.slot(lowest_and_middle(t).0)] = f as u32;
+            for k in 0..3 {
+                let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+                keys[lower.slot(a.min(b) as usize)] = key_of(a, b, (3 * f + k) as u32);
+            }
         }
-        let apex = Apexes::of(&triangles, 0, vertex_count);
-        let groups = Groups {
-            order: Some(&order),
-            lowest: lowest.close(),
-            apexes: std::slice::from_ref(&apex),
-        };
-        let table = pair(&triangles, vertex_count, &groups, false);
-        table.with_triangles(triangles)
+        let mut o = vec![0u32; keys.len()];
+        let mut out = Paired::default();
+        let mut set = |_: &mut Paired, c: u32, to: u32| o[c as usize] = to;
+        for w in lower.close().windows(2) {
+            let bucket = &mut keys[w[0] as usize..w[1] as usize];
+            sort_small(bucket);
+            pair_bucket(bucket, &mut out, &mut set);
+        }
+        drop(keys);
+        assemble(o, vertex_count, vec![out]).with_triangles(triangles)
     }
 
     /// The table of triangles already ordered by their lowest vertex, given the bounds of each
@@ -101,11 +111,7 @@ impl CornerTable {
         parallel: bool,
     ) -> CornerTable {
         check_size(&triangles, vertex_count);
-        let groups = Groups {
-            order: None,
-            lowest,
-            apexes,
-        };
+        let groups = Groups { lowest, apexes };
         let table = pair(&triangles, vertex_count, &groups, parallel);
         table.with_triangles(triangles)
     }
@@ -511,10 +517,9 @@ impl Apexes {
     }
 }
 
-/// What [`pair`] reads: faces by lowest vertex (through `order`, or in place when `None`) with
-/// `lowest[x]..lowest[x + 1]` the faces of vertex `x`, and the apexes of every run of faces.
+/// What [`pair`] reads: faces ordered by lowest vertex, `lowest[x]..lowest[x + 1]` the faces of
+/// vertex `x`, and the apexes of every run of faces.
 struct Groups<'a> {
-    order: Option<&'a [u32]>,
     lowest: &'a [u32],
     apexes: &'a [Apexes],
 }
@@ -554,8 +559,7 @@ fn pair(
     let key = |c: u32| {
         let t = &triangles[c as usize / 3];
         let k = c as usize % 3;
-        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
-        (u64::from(a.max(b)) << 33) | (u64::from(a < b) << 32) | u64::from(c)
+        key_of(t[(k + 1) % 3], t[(k + 2) % 3], c)
     };
     // Pairs the buckets of `vertices`, whose own corners are `own` (starting at corner `base`).
     let pair_range = |vertices: std::ops::Range<usize>, own: &mut [u32], base: usize| -> Paired {
@@ -570,7 +574,7 @@ fn pair(
         for x in vertices {
             bucket.clear();
             for i in groups.lowest[x] as usize..groups.lowest[x + 1] as usize {
-                let f = groups.order.map_or(i, |order| order[i] as usize);
+                let f = i;
                 let t = &triangles[f];
                 // With `x = t[k]` the lowest vertex: corner k + 1 faces the edge from t[k + 2]
                 // down to x, corner k + 2 the edge from x up to t[k + 1].
@@ -584,75 +588,92 @@ fn pair(
                 bucket.extend(apexes.of_vertex(x).iter().map(|&c| key(c)));
             }
             sort_small(&mut bucket);
-            let mut i = 0;
-            while i < bucket.len() {
-                let hi = bucket[i] >> 33;
-                let mut j = i + 1;
-                while j < bucket.len() && bucket[j] >> 33 == hi {
-                    j += 1;
-                }
-                let corner = |k: usize| bucket[k] as u32;
-                match j - i {
-                    1 => {
-                        set(&mut out, corner(i), corner(i));
-                        out.border_count += 1;
-                    }
-                    2 => {
-                        let (a, b) = (corner(i), corner(i + 1));
-                        set(&mut out, a, b);
-                        set(&mut out, b, a);
-                        if (bucket[i] ^ bucket[i + 1]) & (1 << 32) == 0 {
-                            out.same_direction.extend([a, b]);
-                        }
-                    }
-                    _ => {
-                        let first = out.nm_corners.len();
-                        for k in i..j {
-                            set(&mut out, corner(k), NON_MANIFOLD);
-                            out.nm_corners.push(corner(k));
-                        }
-                        out.nm_corners[first..].sort_unstable();
-                        out.nm_ends.push(out.nm_corners.len() as u32);
-                    }
-                }
-                out.edge_count += 1;
-                i = j;
-            }
+            pair_bucket(&bucket, &mut out, &mut set);
         }
         out
     };
-    let parts: Vec<Paired> =
-        if parallel && groups.order.is_none() && triangles.len() > 2 * PART_FACES {
-            use rayon::prelude::*;
-            // Vertex ranges holding about PART_FACES faces each (a vertex's faces are never split),
-            // with their own corners cut from `o`.
-            let mut cuts = vec![0usize];
-            let mut next = PART_FACES;
-            for x in 0..vertex_count {
-                if groups.lowest[x + 1] as usize >= next {
-                    cuts.push(x + 1);
-                    next = groups.lowest[x + 1] as usize + PART_FACES;
+    let parts: Vec<Paired> = if parallel && triangles.len() > 2 * PART_FACES {
+        use rayon::prelude::*;
+        // Vertex ranges holding about PART_FACES faces each (a vertex's faces are never split),
+        // with their own corners cut from `o`.
+        let mut cuts = vec![0usize];
+        let mut next = PART_FACES;
+        for x in 0..vertex_count {
+            if groups.lowest[x + 1] as usize >= next {
+                cuts.push(x + 1);
+                next = groups.lowest[x + 1] as usize + PART_FACES;
+            }
+        }
+        if *cuts.last().expect("starts at 0") != vertex_count {
+            cuts.push(vertex_count);
+        }
+        let mut pieces = Vec::with_capacity(cuts.len());
+        let mut rest = o.as_mut_slice();
+        for w in cuts.windows(2) {
+            let faces = (groups.lowest[w[1]] - groups.lowest[w[0]]) as usize;
+            let (own, tail) = rest.split_at_mut(3 * faces);
+            pieces.push((w[0]..w[1], own, 3 * groups.lowest[w[0]] as usize));
+            rest = tail;
+        }
+        pieces
+            .into_par_iter()
+            .map(|(vertices, own, base)| pair_range(vertices, own, base))
+            .collect()
+    } else {
+        vec![pair_range(0..vertex_count, &mut o, 0)]
+    };
+    assemble(o, vertex_count, parts)
+}
+
+/// A bucket key: the higher vertex of the corner's opposite edge `a -> b` (as its face runs it),
+/// whether that edge rises, and the corner.
+#[inline]
+fn key_of(a: u32, b: u32, corner: u32) -> u64 {
+    (u64::from(a.max(b)) << 33) | (u64::from(a < b) << 32) | u64::from(corner)
+}
+
+/// Pairs the corners of one sorted bucket (keys of [`key_of`], one lower vertex): each run of
+/// one higher vertex is an edge, paired, a border or non-manifold by its length.
+fn pair_bucket(bucket: &[u64], out: &mut Paired, set: &mut impl FnMut(&mut Paired, u32, u32)) {
+    let mut i = 0;
+    while i < bucket.len() {
+        let hi = bucket[i] >> 33;
+        let mut j = i + 1;
+        while j < bucket.len() && bucket[j] >> 33 == hi {
+            j += 1;
+        }
+        let corner = |k: usize| bucket[k] as u32;
+        match j - i {
+            1 => {
+                set(out, corner(i), corner(i));
+                out.border_count += 1;
+            }
+            2 => {
+                let (a, b) = (corner(i), corner(i + 1));
+                set(out, a, b);
+                set(out, b, a);
+                if (bucket[i] ^ bucket[i + 1]) & (1 << 32) == 0 {
+                    out.same_direction.extend([a, b]);
                 }
             }
-            if *cuts.last().expect("starts at 0") != vertex_count {
-                cuts.push(vertex_count);
+            _ => {
+                let first = out.nm_corners.len();
+                for k in i..j {
+                    set(out, corner(k), NON_MANIFOLD);
+                    out.nm_corners.push(corner(k));
+                }
+                out.nm_corners[first..].sort_unstable();
+                out.nm_ends.push(out.nm_corners.len() as u32);
             }
-            let mut pieces = Vec::with_capacity(cuts.len());
-            let mut rest = o.as_mut_slice();
-            for w in cuts.windows(2) {
-                let faces = (groups.lowest[w[1]] - groups.lowest[w[0]]) as usize;
-                let (own, tail) = rest.split_at_mut(3 * faces);
-                pieces.push((w[0]..w[1], own, 3 * groups.lowest[w[0]] as usize));
-                rest = tail;
-            }
-            pieces
-                .into_par_iter()
-                .map(|(vertices, own, base)| pair_range(vertices, own, base))
-                .collect()
-        } else {
-            vec![pair_range(0..vertex_count, &mut o, 0)]
-        };
-    let mut same_direction = vec![0u64; corners.div_ceil(64)];
+        }
+        out.edge_count += 1;
+        i = j;
+    }
+}
+
+/// The table (without `V`) from `O` and what the parts of the pairing found, in vertex order.
+fn assemble(o: Vec<u32>, vertex_count: usize, parts: Vec<Paired>) -> CornerTable {
+    let mut same_direction = vec![0u64; o.len().div_ceil(64)];
     let mut table = CornerTable {
         v: Vec::new(),
         o,
