@@ -8,8 +8,9 @@
 //! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cells spelt out),
 //! `repairs` an array of `{repair, count, faces}` (`faces`: the faces a `fill-holes` or
 //! `flip-inside-out-shells` added or turned, else `null`), and `shells` the per-shell table
-//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out, pinched}` (the CSV's
-//! count is its length, less the pinched solids). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
+//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out, pinched, meets}` (the
+//! CSV's count is its length, less the pinched solids; `meets`: the shells, by index in the table,
+//! whose faces meet this one's). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
 
 use std::io::{self, Write};
 
@@ -87,6 +88,7 @@ fn shell(s: &ShellRow) -> Value {
         "role": role_name(s.role),
         "inside_out": s.inside_out,
         "pinched": s.pinched,
+        "meets": s.meets,
     })
 }
 
@@ -166,7 +168,7 @@ mod tests {
         assert_eq!(
             value["shells"],
             serde_json::json!([{"faces": 4, "holes": 0, "genus": 0, "volume": -0.5, "depth": 0,
-                "role": "solid", "inside_out": true, "pinched": false}])
+                "role": "solid", "inside_out": true, "pinched": false, "meets": []}])
         );
     }
 }

@@ -10,7 +10,7 @@ use crate::rules::{Finding, Rule, Severity};
 use crate::topology::Role;
 
 /// First line of every entry's body; bump the number when the body changes shape.
-pub(super) const HEADER: &[u8] = b"meshvet-cache 5\n";
+pub(super) const HEADER: &[u8] = b"meshvet-cache 6\n";
 
 /// A whole record: frame, then the body (header, checksum of the rest, the rest).
 pub(super) fn record(
@@ -204,6 +204,10 @@ pub(super) fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
             });
             out.push(u8::from(s.inside_out));
             out.push(u8::from(s.pinched));
+            put_len(&mut out, s.meets.len());
+            for &m in &s.meets {
+                put_u64(&mut out, m as u64);
+            }
         }
     }
     Ok(out)
@@ -260,6 +264,7 @@ pub(super) fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
                     },
                     inside_out: r.u8()? == 1,
                     pinched: r.u8()? == 1,
+                    meets: (0..r.len()?).map(|_| r.usize()).collect::<Option<_>>()?,
                 })
             })
             .collect::<Option<Vec<_>>>()?;

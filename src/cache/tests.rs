@@ -164,6 +164,8 @@ fn cells_decode_as_the_csv_reader_reads_them() {
         findings: "hole:1".into(),
         status_after: "pass".into(),
         findings_after: "x".into(),
+        self_intersections: Some(26),
+        intersecting_components: Some(27),
     };
     for row in [row, Row::default()] {
         let outcome = Outcome {

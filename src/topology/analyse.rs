@@ -8,13 +8,16 @@
 //! 3. walk the **fan** of every corner (faces around its vertex linked through manifold edges): a vertex
 //!    with more than one fan is non-manifold; fans also pair the border edges at each vertex, which
 //!    traces the **holes** on the undirected border;
-//! 4. per component: V, E, F, chi, holes, genus; per shell (closed, manifold component): volume, then
-//!    nesting depth, role and orientation.
+//! 4. per component: V, E, F, chi, holes, genus;
+//! 5. the pairs of faces that meet ([`super::intersect`]), within and between components;
+//! 6. per shell (closed, manifold component): volume, then nesting depth among the shells it does not
+//!    meet, role and orientation.
 //!
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
 use super::built::{build, Built};
+use super::intersect::{intersect, Surface};
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
@@ -64,14 +67,20 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     a.duplicate_faces = count_duplicates(table);
 
     // 2. Patches with orientation parity, then components.
-    let patches = walk_patches(table);
+    let mut patches = walk_patches(table);
     let component_of_patch = join_patches(table, &patches, &built.source);
     let component_count = component_of_patch
         .iter()
         .map(|&c| c as usize + 1)
         .max()
         .unwrap_or(0);
-    let component_of = |t: u32| component_of_patch[patches.of_face[t as usize] as usize] as usize;
+    // Each face's patch becomes its component, in place: the walks below, the search for faces
+    // that meet and a later repair read it.
+    let mut component = std::mem::take(&mut patches.of_face);
+    for c in &mut component {
+        *c = component_of_patch[*c as usize];
+    }
+    let component_of = |t: u32| component[t as usize] as usize;
 
     let mut components = vec![Component::default(); component_count];
     for c in &mut components {
@@ -131,19 +140,35 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     }
     a.euler = used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
 
+    // 5. Faces that meet: within a component, between components.
+    a.intersections = options.intersections.map(|search| {
+        let triangles = table.triangles();
+        let surface = Surface {
+            points,
+            table,
+            component: &|t| component[t as usize],
+            left_out: &|t| {
+                let [p, q, r] = triangles[t as usize].map(|v| points[v as usize]);
+                cross2(p, q, r) <= zero_cross2
+            },
+            number: Some(&built.source),
+        };
+        intersect(&surface, &search)
+    });
+    let meeting: &[[u32; 2]] = a
+        .intersections
+        .as_ref()
+        .map_or(&[], |i| i.component_pairs.as_slice());
+
+    // 6. Shells: volume, then nesting among the shells that do not meet.
     let faces = Faces {
         table,
         points,
         patches: &patches,
     };
-    a.shells = shells(&faces, &component_of, &components, &fans.fans);
+    a.shells = shells(&faces, &component_of, &components, &fans.fans, meeting);
     a.components = components;
     let manifold = a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0;
-    // Each face's patch becomes its component, in place.
-    let mut component = patches.of_face;
-    for c in &mut component {
-        *c = component_of_patch[*c as usize];
-    }
     (
         a,
         Built {
@@ -459,6 +484,7 @@ fn shells(
     component_of: &impl Fn(u32) -> usize,
     components: &[Component],
     fans: &[(u32, u32)],
+    meeting: &[[u32; 2]],
 ) -> Vec<Shell> {
     let mut shell_of = vec![UNSET; components.len()];
     let mut shells: Vec<Shell> = Vec::new();
@@ -546,6 +572,18 @@ fn shells(
         }
     }
 
+    // The shells each shell meets (both components of a meeting pair are shells).
+    for &[a, b] in meeting {
+        let (sa, sb) = (shell_of[a as usize], shell_of[b as usize]);
+        if sa != UNSET && sb != UNSET {
+            shells[sa as usize].meets.push(sb as usize);
+            shells[sb as usize].meets.push(sa as usize);
+        }
+    }
+    for shell in &mut shells {
+        shell.meets.sort_unstable();
+    }
+
     let depth = if shells.len() > 1 {
         // Faces of each shell, by a counting sort on the shell.
         let mut start = vec![0u32; shells.len() + 1];
@@ -575,7 +613,9 @@ fn shells(
                 faces: &list[start[i] as usize..start[i + 1] as usize],
             })
             .collect();
-        depths(faces.table, faces.points, &geometry)
+        // A shell that meets another has no depth against it: crossing, neither is inside.
+        let apart = |a: usize, b: usize| shells[a].meets.binary_search(&b).is_err();
+        depths(faces.table, faces.points, &geometry, &apart)
     } else {
         vec![0; shells.len()]
     };

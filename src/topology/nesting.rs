@@ -42,16 +42,18 @@ const DIRECTIONS: [[f64; 3]; 6] = [
 /// touch, which is not containment).
 const ATTEMPTS: usize = 12;
 
-/// The depth of every shell.
+/// The depth of every shell: how many shells contain it, among those it is `apart` from (shells
+/// whose surfaces meet are never inside one another: parity says nothing about crossing shells).
 pub(crate) fn depths(
     table: &CornerTable,
     points: &[[f64; 3]],
     shells: &[ShellGeometry],
+    apart: &dyn Fn(usize, usize) -> bool,
 ) -> Vec<usize> {
     let mut depth = vec![0usize; shells.len()];
     let boxes: Vec<[[f64; 3]; 2]> = shells.iter().map(|s| s.bbox).collect();
     boxed_pairs(&boxes, |inner, outer| {
-        if contains(table, points, &shells[outer], &shells[inner]) {
+        if apart(inner, outer) && contains(table, points, &shells[outer], &shells[inner]) {
             depth[inner] += 1;
         }
     });

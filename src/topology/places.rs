@@ -29,6 +29,9 @@ pub struct Places {
     pub triangles: Vec<[u32; 3]>,
     /// Per face of [`Places::triangles`]: it belongs to an inside-out shell.
     pub inside_out: Vec<bool>,
+    /// Per face of [`Places::triangles`]: it meets another face (crosses or touches it where the
+    /// mesh does not join them); all `false` when the analysis did not look.
+    pub meets: Vec<bool>,
     /// Per face of [`Places::triangles`]: the index in [`Places::shells`] of the shell it belongs
     /// to, or [`NO_SHELL`] when its component is not a shell.
     pub shell: Vec<u32>,
@@ -147,8 +150,13 @@ pub fn places(built: &Built, analysis: &Analysis) -> Places {
         .map(|&s| s != NO_SHELL && analysis.shells[s as usize].inside_out)
         .collect();
 
+    let meets = match &analysis.intersections {
+        Some(i) => built.source.iter().map(|&s| i.involves(s)).collect(),
+        None => vec![false; faces],
+    };
     Places {
         points: built.welded.positions.clone(),
+        meets,
         triangles: table.triangles().to_vec(),
         inside_out,
         shell,
