@@ -16,12 +16,12 @@
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
-use super::built::{build, Built};
+use super::built::{build, cross2, zero_area_bound, Built};
 use super::intersect::{intersect, Surface};
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::geometry::{bounding_box, by_position, cross, dist2, dot, norm2, normal, sub};
+use crate::geometry::{bounding_box, by_position, cross, dist2, dot, sub};
 use crate::mesh::Mesh;
 
 const UNSET: u32 = u32::MAX;
@@ -683,18 +683,6 @@ fn first_faces_flip(
 pub(crate) fn is_flat(volume: f64, bbox: &[[f64; 3]; 2]) -> bool {
     let diagonal = dist2(bbox[0], bbox[1]).sqrt();
     volume.abs() <= 1e-12 * diagonal.powi(3)
-}
-
-/// The largest [`cross2`] of a zero-area face in a mesh with this bounding box: a face's area is at
-/// most 1e-12 x (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`.
-pub(crate) fn zero_area_bound(bbox: Option<[[f64; 3]; 2]>) -> f64 {
-    let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
-    (2e-12 * diagonal2).powi(2)
-}
-
-/// `|(b - a) x (c - a)|^2`: four times the squared area of triangle `a b c`.
-pub(crate) fn cross2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    norm2(normal(a, b, c))
 }
 
 #[cfg(test)]

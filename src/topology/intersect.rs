@@ -24,11 +24,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use rayon::prelude::*;
 
-use super::analyse::{analyse_keeping, cross2, zero_area_bound};
-use super::Built;
-use super::Options;
+use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
-use crate::mesh::Mesh;
 use tree::{Box3, Tree, Visit};
 
 /// What the test reads of a mesh: the welded points, the Corner Table of the faces the analysis
@@ -116,16 +113,8 @@ impl Intersections {
     }
 }
 
-/// The faces that meet in `mesh` after the analysis's weld (`options`), with the faces, pairs and
-/// components numbered as in the mesh and in [`crate::Analysis::components`]. Welds, leaves out
-/// invalid and degenerate faces and builds the table and components exactly as the analysis does;
-/// zero-area faces are left out.
-pub fn intersections(mesh: &Mesh, options: &Options, search: &Search) -> Intersections {
-    let (analysis, built) = analyse_keeping(mesh, options);
-    intersections_built(&built, analysis.bbox, search)
-}
-
-/// [`intersections`] of a mesh already analysed, from what the analysis built and its bounding box
+/// The faces that meet in a mesh already analysed (as the analysis finds them, with `search`),
+/// from what the analysis built and its bounding box
 /// ([`crate::Analysis::bbox`], which sets the zero-area threshold).
 pub fn intersections_built(
     built: &Built,

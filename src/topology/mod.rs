@@ -11,9 +11,7 @@ mod places;
 
 pub use analyse::{analyse, analyse_keeping};
 pub use built::{build, Built, LeftOut};
-pub use intersect::{
-    intersect, intersections, intersections_built, Intersections, Search, Surface,
-};
+pub use intersect::{intersect, intersections_built, Intersections, Search, Surface};
 pub use places::{places, Places, NO_SHELL};
 
 /// How the analysis [welds](crate::definitions#welding) vertices, and whether it looks for

@@ -24,14 +24,13 @@ use quick_xml::events::{BytesStart, Event};
 use rustc_hash::FxHashMap;
 
 use super::super::{Limits, ReadError};
-use super::package::{self, Relationship};
+use super::package;
 use super::xml::{Step, Xml};
 
 /// The 3MF core namespace.
 pub const CORE: &[u8] = b"http://schemas.microsoft.com/3dmanufacturing/core/2015/02";
 /// The production extension (`p:path`, `p:UUID`).
 pub const PRODUCTION: &[u8] = b"http://schemas.microsoft.com/3dmanufacturing/production/2015/06";
-const RELATIONSHIPS: &[u8] = b"http://schemas.openxmlformats.org/package/2006/relationships";
 
 /// Extensions a file may require that leave the meaning of its `<mesh>` elements as the core
 /// specification says: materials and properties, production, beam lattices (and their balls),
@@ -872,87 +871,6 @@ fn extra_name(ns: Option<&[u8]>, local: &[u8]) -> String {
     }
 }
 
-/// The relationships of the `.rels` part named `part` (bytes), their targets resolved against
-/// `source` (a key); an external target or one outside the package is refused.
-pub fn relationships<R: BufRead>(
-    bytes: R,
-    part: &str,
-    source: &str,
-) -> Result<Vec<Relationship>, ReadError> {
-    let part = part.to_owned();
-    let mut xml = Xml::new(bytes, &part);
-    let mut buf = Vec::new();
-    let mut out = Vec::new();
-    loop {
-        let (step, event) = xml.next(&mut buf)?;
-        if step == Step::Eof {
-            break;
-        }
-        let (Event::Start(e) | Event::Empty(e)) = &event else {
-            continue;
-        };
-        let ns = xml.namespace(e);
-        let is_relationship =
-            e.local_name().as_ref() == b"Relationship" && ns.is_none_or(|ns| ns == RELATIONSHIPS);
-        let (mut kind, mut target, mut external) = (String::new(), None, false);
-        xml.each_attribute(e, |ns, local, value| {
-            if ns.is_none() && is_relationship {
-                let text = String::from_utf8_lossy(value);
-                match local {
-                    b"Type" => kind = text.into_owned(),
-                    b"Target" => target = Some(text.into_owned()),
-                    b"TargetMode" => external = text.eq_ignore_ascii_case("external"),
-                    _ => {}
-                }
-            }
-            Ok(())
-        })?;
-        if !is_relationship {
-            continue;
-        }
-        let target = target.ok_or_else(|| {
-            ReadError::new(format!(
-                "part {part} has a relationship without a Target: the file is damaged - re-export it"
-            ))
-        })?;
-        if external {
-            return Err(ReadError::new(format!(
-                "part {part} has a relationship to `{target}` outside the package (TargetMode External): meshvet reads nothing outside the 3MF file - embed the part or remove the relationship"
-            )));
-        }
-        let target = package::resolve(&target, source).map_err(|why| {
-            ReadError::new(format!("part {part} has a relationship whose target {why}"))
-        })?;
-        out.push(Relationship { kind, target });
-    }
-    Ok(out)
-}
-
-/// The parts a secure-content keystore lists as encrypted (its `resourcedata` paths, as keys).
-pub fn keystore<R: BufRead>(bytes: R, part: &str) -> Result<Vec<String>, ReadError> {
-    let part = part.to_owned();
-    let mut xml = Xml::new(bytes, &part);
-    let mut buf = Vec::new();
-    let mut out = Vec::new();
-    loop {
-        let (step, event) = xml.next(&mut buf)?;
-        if step == Step::Eof {
-            break;
-        }
-        let (Event::Start(e) | Event::Empty(e)) = &event else {
-            continue;
-        };
-        let data = e.local_name().as_ref() == b"resourcedata";
-        xml.each_attribute(e, |ns, local, value| {
-            if data && ns.is_none() && local == b"path" {
-                out.push(package::key(&String::from_utf8_lossy(value)));
-            }
-            Ok(())
-        })?;
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1194,26 +1112,5 @@ mod tests {
         assert!(transform_sign(b"1 0 0 0 1 0 0 0 1 NaN 0 0").is_err());
         assert!(transform_sign(b"1 0 0 0 1 0 0 0 1 inf 0 0").is_err());
         assert!(transform_sign(b"1,0 0 0 0 1 0 0 0 1 0 0 0").is_err());
-    }
-
-    #[test]
-    fn relationships_resolve_and_refuse_outside_targets() {
-        let rels = br#"<?xml version="1.0"?><Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="r0" Type="T"/><Relationship Target="thumb.png" Id="r1" Type="U"/></Relationships>"#;
-        assert_eq!(
-            relationships(&rels[..], "/_rels/.rels", "").unwrap(),
-            [
-                Relationship {
-                    kind: "T".into(),
-                    target: "3d/3dmodel.model".into()
-                },
-                Relationship {
-                    kind: "U".into(),
-                    target: "thumb.png".into()
-                }
-            ]
-        );
-        let external = br#"<Relationships><Relationship Target="x.model" TargetMode="External" Type="T"/></Relationships>"#;
-        let e = relationships(&external[..], "/_rels/.rels", "").unwrap_err();
-        assert!(e.0.contains("External"), "{e}");
     }
 }
