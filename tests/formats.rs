@@ -144,7 +144,7 @@ fn obj_hostile() {
         .collect();
     let _ = load("g.obj", &garbage); // error or notes, never a panic
     let png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR";
-    assert!(err("p.obj", png).contains("binary data"));
+    assert!(err("p.obj", png).contains("looks like a PNG image"));
     let m = ok("pl.obj", b"v 0 0 0\nv 1 0 0\np 1 2\nl 1 2\n");
     assert!(
         m.triangles.is_empty() && m.notes.len() == 2,
@@ -269,6 +269,79 @@ fn off_happy_and_hostile() {
     assert!(ok("n.off", b"OFF\n3 1 0\nnan 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").positions[0][0].is_nan());
     assert!(err("t.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n").contains("truncated"));
     assert!(err("png.off", b"\x89PNG\r\n\x1a\n\0\0").contains("not an OFF"));
+}
+
+/// `n` bytes of compressed-looking data without a zero byte (zeros turned into ones): about one in
+/// nine is a control character, about half are not UTF-8.
+fn noise(n: usize) -> Vec<u8> {
+    let mut x = 0x2545_F491_4F6C_DD1Du64;
+    (0..n)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 24) as u8
+        })
+        .map(|b| b.max(1))
+        .collect()
+}
+
+/// A PNG renamed to each text format (its signature, then bytes with no zero among them): an
+/// error naming the PNG, never an `empty` row; the same for other signatures, and binary data
+/// of no known format is binary data (by its control characters).
+#[test]
+fn binary_content_named_as_a_text_format_is_an_error_that_says_what_it_looks_like() {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(noise(3000));
+    for (name, what) in [
+        ("a.obj", "an OBJ"),
+        ("a.off", "an OFF"),
+        ("a.ply", "a PLY"),
+        ("a.stl", "an STL"),
+    ] {
+        let e = err(name, &png);
+        assert!(
+            e.contains(&format!("this looks like a PNG image, not {what} file")),
+            "{name}: {e}"
+        );
+    }
+    let mut zip = b"PK\x03\x04".to_vec();
+    zip.extend(noise(500));
+    assert!(err("z.obj", &zip).contains("looks like a ZIP archive"));
+    let mut pdf = b"%PDF-1.7\n".to_vec();
+    pdf.extend(noise(500));
+    assert!(err("d.stl", &pdf).contains("looks like a PDF document, not an STL file"));
+    assert!(err("g.off", b"glTF\x02\x00\x00\x00").contains("binary glTF"));
+    let e = err("n.obj", &noise(3000));
+    assert!(
+        e.contains("not a text OBJ file: binary data (control characters"),
+        "{e}"
+    );
+    let e = err("n.off", &noise(3000));
+    assert!(e.contains("not a text OFF file: binary data"), "{e}");
+    assert!(err("u.off", b"\xff\xfeO\0F\0F\0").contains("UTF-16"));
+}
+
+/// What is still text: Latin-1 names (a note), and an OBJ after a short binary preamble (a web
+/// archive holding the text: 20 control characters in its first 8 KiB, zeros only after them),
+/// whose 200 squares are read as 400 triangles.
+#[test]
+fn latin1_names_and_a_short_binary_preamble_stay_text() {
+    let m = ok(
+        "l.obj",
+        b"# export\xe9 par Mod\xe8le\no caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    assert_eq!(m.triangles.len(), 1);
+    assert!(m.notes.iter().any(|n| n.contains("not valid UTF-8")));
+    let mut archive =
+        b"bplist00\xd1\x01\x02_\x10\x0fWebMainResource\xd5\x03\x04\x05\x06\x07\x08\x09\
+        \x0a\x0b\x0c_\x10\x0fWebResource\x0e\x11\x12\x13\x14\x15<html><pre>\n"
+            .to_vec();
+    let square = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+    archive.extend(square.repeat(200).as_bytes());
+    archive.extend(b"</pre></html>\x00\x00\x01");
+    let m = ok("w.obj", &archive);
+    assert_eq!(m.triangles.len(), 400);
 }
 
 /// Every mesh file of the shared corpus loads without a panic, and where the reference libraries

@@ -16,6 +16,7 @@ use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use super::contain::{self, Location, Unresolved};
+use super::text::Binary;
 use super::{Limits, ReadContext, ReadError, Retained, SideFiles};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -298,19 +299,11 @@ fn parse_with(
     p.finish(notes)
 }
 
-/// UTF-8 text of the file: BOM stripped, non-UTF-8 bytes replaced (with a note), UTF-16 refused.
+/// UTF-8 text of the file: BOM stripped, non-UTF-8 bytes replaced (with a note); UTF-16 and binary
+/// content refused ([`Binary`]).
 fn decode<'a>(bytes: &'a [u8], notes: &mut Vec<String>) -> Result<Cow<'a, str>, ReadError> {
-    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
-        return Err(ReadError::new(
-            "the OBJ file is UTF-16 text: OBJ must be ASCII or UTF-8 - re-save it as UTF-8 (any \
-             text editor can convert it)",
-        ));
-    }
-    if let Some(nul) = bytes.iter().take(4096).position(|&b| b == 0) {
-        return Err(ReadError::new(format!(
-            "not a text OBJ file: binary data (a zero byte at offset {nul}) - check that the file \
-             really is an OBJ (a renamed or corrupted file?)"
-        )));
+    if let Some(binary) = Binary::of(bytes) {
+        return Err(binary.error("OBJ"));
     }
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     match std::str::from_utf8(bytes) {
@@ -781,10 +774,7 @@ mod tests {
     use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     fn mesh(s: &str) -> Mesh {
@@ -857,7 +847,8 @@ mod tests {
     #[test]
     fn encodings() {
         assert!(err(b"\xff\xfev\x000\x00").contains("UTF-16"));
-        assert!(err(b"\x89PNG\r\n\x1a\n\0\0\0").contains("binary data"));
+        assert!(err(b"\x89PNG\r\n\x1a\n\0\0\0").contains("looks like a PNG image"));
+        assert!(err(b"v 0 0 0\n\0").contains("binary data (a zero byte at offset 8)"));
         let m = parse(b"o caf\xe9\nv 0 0 0\n", &cx()).unwrap().mesh;
         assert_eq!(m.positions.len(), 1);
         assert!(m.notes[0].contains("not valid UTF-8"), "{:?}", m.notes);

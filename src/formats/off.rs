@@ -9,6 +9,7 @@
 
 use std::path::Path;
 
+use super::text::Binary;
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -154,7 +155,12 @@ fn parse_with(
         rest: bytes,
         line: 0,
     };
+    // Binary content is an error only where the text is not OFF: `OFF BINARY` has its own message.
+    let binary = Binary::of(bytes);
     let Some((first, first_no)) = lines.next() else {
+        if let Some(binary) = binary {
+            return Err(binary.error("OFF"));
+        }
         mesh.notes.push("the file is empty".into());
         return Ok(mesh);
     };
@@ -173,6 +179,9 @@ fn parse_with(
         .filter(|(_, g)| g.iter().all(u8::is_ascii_digit))
         .map(|(k, g)| (&keyword[..k], g))
     else {
+        if let Some(binary) = binary {
+            return Err(binary.error("OFF"));
+        }
         let what = if first.iter().any(|&b| !(0x09..0x80).contains(&b)) {
             "binary data".to_string()
         } else {
@@ -357,13 +366,9 @@ fn parse_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     fn ok(s: &str) -> Mesh {

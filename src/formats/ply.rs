@@ -16,6 +16,7 @@ use ply_rs_bw::ply::{
     ScalarType,
 };
 
+use super::text::Binary;
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -195,6 +196,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         return Ok(mesh);
     }
     if !(bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r")) {
+        if let Some(binary) = Binary::of(bytes) {
+            return Err(binary.error("PLY"));
+        }
         return Err(ReadError::new(
             "not a PLY file: it does not start with the line `ply` - check that the file really \
              is a PLY (a renamed or corrupted file?)",
@@ -667,13 +671,9 @@ impl Body<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     /// Strip 0 1 2 3 | 4 5 6 6 7 (-1 restarts): triangles 012, 213 (second window reversed), 456;

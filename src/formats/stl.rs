@@ -12,6 +12,7 @@
 
 use std::path::Path;
 
+use super::text::Binary;
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -40,14 +41,12 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         }
     }
     // Binary data after a `solid` header (a binary file of the wrong size) is not ASCII STL.
-    if starts_with_solid(bytes) && !looks_binary(bytes) {
+    if starts_with_solid(bytes) && Binary::of(bytes).is_none() {
         return parse_ascii(bytes, cx);
     }
-    if looks_like_other_format(bytes) {
-        return Err(ReadError::new(
-            "not an STL file: the content is another format (an image, archive or other mesh \
-             format) with an .stl name - rename it to its real extension or re-export it as STL",
-        ));
+    // Binary data is binary STL, but not an image, an archive or another mesh format.
+    if let Some(other) = Binary::known(bytes) {
+        return Err(other.error("STL"));
     }
     match declared {
         None => Err(ReadError::new(format!(
@@ -102,29 +101,6 @@ fn starts_with_solid(bytes: &[u8]) -> bool {
     bytes[start..]
         .get(..5)
         .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"))
-}
-
-/// Control bytes other than whitespace in the first kilobyte: this is no text file.
-fn looks_binary(bytes: &[u8]) -> bool {
-    bytes
-        .iter()
-        .take(1024)
-        .any(|&b| b < 0x20 && !b.is_ascii_whitespace() || b == 0x7f)
-}
-
-/// Magic numbers of formats that end up renamed to `.stl` (PNG, JPEG, ZIP, GLB, PLY, gzip).
-fn looks_like_other_format(bytes: &[u8]) -> bool {
-    [
-        &b"\x89PNG"[..],
-        b"\xff\xd8\xff",
-        b"PK\x03\x04",
-        b"glTF",
-        b"ply\n",
-        b"ply\r",
-        b"\x1f\x8b",
-    ]
-    .iter()
-    .any(|m| bytes.starts_with(m))
 }
 
 fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {
@@ -337,13 +313,9 @@ fn parse_f64(token: &[u8]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     fn binary(tris: &[[[f32; 3]; 3]], header: &[u8]) -> Vec<u8> {
@@ -419,7 +391,10 @@ mod tests {
         assert!(parse(b"hello", &cx()).unwrap_err().0.contains("not an STL"));
         let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
         png.resize(500, 7);
-        assert!(parse(&png, &cx()).unwrap_err().0.contains("another format"));
+        assert!(parse(&png, &cx())
+            .unwrap_err()
+            .0
+            .contains("looks like a PNG image, not an STL file"));
     }
 
     #[test]
