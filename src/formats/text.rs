@@ -159,6 +159,35 @@ fn invalid_utf8_bytes(mut bytes: &[u8]) -> usize {
     }
 }
 
+/// The words of a line: the runs of bytes between ASCII whitespace, as `str::split_ascii_whitespace`
+/// finds them.
+#[inline]
+pub(crate) fn words(line: &[u8]) -> Words<'_> {
+    Words { rest: line }
+}
+
+/// The iterator of [`words`].
+#[derive(Clone)]
+pub(crate) struct Words<'a> {
+    rest: &'a [u8],
+}
+
+impl<'a> Iterator for Words<'a> {
+    type Item = &'a [u8];
+
+    #[inline]
+    fn next(&mut self) -> Option<&'a [u8]> {
+        let start = self.rest.iter().position(|b| !b.is_ascii_whitespace())?;
+        let rest = &self.rest[start..];
+        let end = rest
+            .iter()
+            .position(u8::is_ascii_whitespace)
+            .unwrap_or(rest.len());
+        self.rest = &rest[end..];
+        Some(&rest[..end])
+    }
+}
+
 /// The `f64` that `str::parse::<f64>` gives for these bytes, or `None` where it gives an error.
 #[inline]
 pub(crate) fn parse_f64(bytes: &[u8]) -> Option<f64> {
@@ -168,46 +197,72 @@ pub(crate) fn parse_f64(bytes: &[u8]) -> Option<f64> {
 /// `str::parse::<i64>` on bytes: an optional `+` or `-`, then one or more ASCII digits, in range.
 #[inline]
 pub(crate) fn parse_i64(bytes: &[u8]) -> Option<i64> {
-    let (negative, digits) = match bytes.split_first()? {
-        (b'-', rest) => (true, rest),
-        (b'+', rest) => (false, rest),
-        _ => (false, bytes),
+    leading_i64(bytes)
+        .filter(|&(_, n)| n == bytes.len())
+        .map(|(i, _)| i)
+}
+
+/// The integer at the start of `bytes` (an optional sign, then ASCII digits up to the first other
+/// byte) and its length in bytes; `None` without a digit or out of range.
+#[inline]
+pub(crate) fn leading_i64(bytes: &[u8]) -> Option<(i64, usize)> {
+    let (negative, at) = match bytes.first()? {
+        b'-' => (true, 1),
+        b'+' => (false, 1),
+        _ => (false, 0),
     };
     // Accumulated negatively: i64::MIN has no positive counterpart.
     let mut value = 0i64;
-    if digits.is_empty() {
-        return None;
-    }
-    for &b in digits {
+    let mut end = at;
+    while let Some(&b) = bytes.get(end) {
         let d = b.wrapping_sub(b'0');
         if d > 9 {
-            return None;
+            break;
         }
         value = value.checked_mul(10)?.checked_sub(d as i64)?;
+        end += 1;
     }
-    if negative {
-        Some(value)
+    if end == at {
+        return None;
+    }
+    let value = if negative {
+        value
     } else {
-        value.checked_neg()
-    }
+        value.checked_neg()?
+    };
+    Some((value, end))
 }
 
 /// `str::parse::<u64>` on bytes: an optional `+`, then one or more ASCII digits, in range.
 #[inline]
 pub(crate) fn parse_u64(bytes: &[u8]) -> Option<u64> {
-    let digits = bytes.strip_prefix(b"+").unwrap_or(bytes);
-    if digits.is_empty() {
-        return None;
-    }
+    leading_u64(bytes)
+        .filter(|&(_, n)| n == bytes.len())
+        .map(|(i, _)| i)
+}
+
+/// The unsigned integer at the start of `bytes` (an optional `+`, then ASCII digits up to the
+/// first other byte) and its length in bytes; `None` without a digit or out of range.
+#[inline]
+pub(crate) fn leading_u64(bytes: &[u8]) -> Option<(u64, usize)> {
+    let at = usize::from(bytes.first() == Some(&b'+'));
     let mut value = 0u64;
-    for &b in digits {
+    let mut end = at;
+    while let Some(&b) = bytes.get(end) {
         let d = b.wrapping_sub(b'0');
         if d > 9 {
-            return None;
+            break;
         }
         value = value.checked_mul(10)?.checked_add(d as u64)?;
+        end += 1;
     }
-    Some(value)
+    (end > at).then_some((value, end))
+}
+
+/// The `f64` at the start of `bytes` as [`parse_f64`] reads it, and its length in bytes.
+#[inline]
+pub(crate) fn leading_f64(bytes: &[u8]) -> Option<(f64, usize)> {
+    fast_float2::parse_partial(bytes).ok()
 }
 
 /// `str::parse::<usize>` on bytes.
@@ -385,6 +440,16 @@ mod tests {
             }
             same_as_std(std::str::from_utf8(&bumped).unwrap());
         }
+    }
+
+    #[test]
+    fn words_are_split_at_ascii_whitespace_only() {
+        let line = " v\t1 \x0c2\r\n3\x0b4  caf\u{e9}\u{a0}x ";
+        let ours: Vec<&[u8]> = words(line.as_bytes()).collect();
+        let std: Vec<&[u8]> = line.split_ascii_whitespace().map(str::as_bytes).collect();
+        assert_eq!(ours, std);
+        assert_eq!(ours.len(), 5);
+        assert_eq!(words(b"  \t ").next(), None);
     }
 
     /// 64 bytes of text: `v 0 0 0\n` eight times.
