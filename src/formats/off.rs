@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use super::text::Binary;
+use super::text::{self, Binary};
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -56,9 +56,12 @@ struct Cursor<'a> {
 }
 
 impl<'a> Cursor<'a> {
-    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+    /// Moves to the start of the next token; false at the end of the bytes.
+    fn reach_token(&mut self) -> bool {
         loop {
-            let &b = self.bytes.get(self.pos)?;
+            let Some(&b) = self.bytes.get(self.pos) else {
+                return false;
+            };
             if b == b'#' {
                 self.skip_line();
             } else if b.is_ascii_whitespace() {
@@ -67,8 +70,14 @@ impl<'a> Cursor<'a> {
                 }
                 self.pos += 1;
             } else {
-                break;
+                return true;
             }
+        }
+    }
+
+    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        if !self.reach_token() {
+            return None;
         }
         let start = self.pos;
         while self
@@ -79,6 +88,31 @@ impl<'a> Cursor<'a> {
             self.pos += 1;
         }
         Some((&self.bytes[start..self.pos], self.line))
+    }
+
+    /// The next token as a number read by `leading` (a number at the start of the bytes and its
+    /// length), in one pass when the number is the whole token; else `Err` with the token, for
+    /// the caller's message. `None` at the end of the bytes.
+    #[inline]
+    fn number<T>(
+        &mut self,
+        leading: impl Fn(&[u8]) -> Option<(T, usize)>,
+    ) -> Option<(Result<T, &'a [u8]>, u64)> {
+        if !self.reach_token() {
+            return None;
+        }
+        let rest = &self.bytes[self.pos..];
+        if let Some((x, n)) = leading(rest) {
+            if rest
+                .get(n)
+                .is_none_or(|&b| b.is_ascii_whitespace() || b == b'#')
+            {
+                self.pos += n;
+                return Some((Ok(x), self.line));
+            }
+        }
+        let (token, line) = self.next()?;
+        Some((Err(token), line))
     }
 
     /// The rest of the current line (comment and surrounding blanks removed), then skips it.
@@ -94,27 +128,19 @@ impl<'a> Cursor<'a> {
 
     /// Skips to the start of the next line.
     fn skip_line(&mut self) {
-        while let Some(&b) = self.bytes.get(self.pos) {
-            self.pos += 1;
-            if b == b'\n' {
+        match memchr::memchr(b'\n', &self.bytes[self.pos.min(self.bytes.len())..]) {
+            Some(k) => {
+                self.pos += k + 1;
                 self.line += 1;
-                return;
             }
+            None => self.pos = self.bytes.len(),
         }
     }
 }
 
-fn words(line: &[u8]) -> impl Iterator<Item = &[u8]> {
-    line.split(|b| b.is_ascii_whitespace())
-        .filter(|w| !w.is_empty())
-}
-
-fn text(w: &[u8]) -> String {
+/// The first 40 bytes of a word, for a message.
+fn shown(w: &[u8]) -> String {
     String::from_utf8_lossy(&w[..w.len().min(40)]).into_owned()
-}
-
-fn number<T: std::str::FromStr>(w: &[u8]) -> Option<T> {
-    std::str::from_utf8(w).ok()?.parse().ok()
 }
 
 fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
@@ -164,7 +190,7 @@ fn parse_with(
         mesh.notes.push("the file is empty".into());
         return Ok(mesh);
     };
-    let mut head = words(first);
+    let mut head = text::words(first);
     let keyword = head.next().unwrap_or_default();
     if let Some(d) = detail.as_deref_mut() {
         d.keyword = String::from_utf8_lossy(keyword).into_owned();
@@ -185,7 +211,7 @@ fn parse_with(
         let what = if first.iter().any(|&b| !(0x09..0x80).contains(&b)) {
             "binary data".to_string()
         } else {
-            format!("`{}`", text(keyword))
+            format!("`{}`", shown(keyword))
         };
         return Err(ReadError::new(format!(
             "not an OFF file: it starts with {what} instead of `OFF` - check that the file really \
@@ -225,7 +251,7 @@ fn parse_with(
                 .push("OFF header without counts: no vertices or faces".into());
             return Ok(mesh);
         };
-        counts = words(l).collect();
+        counts = text::words(l).collect();
         counts_no = no;
     }
     let count = |k: usize, what: &str| -> Result<u64, ReadError> {
@@ -235,10 +261,10 @@ fn parse_with(
                 format!("the header has no {what} count - it needs `vertices faces edges`"),
             )
         })?;
-        number::<u64>(w).ok_or_else(|| {
+        text::parse_u64(w).ok_or_else(|| {
             line_err(
                 counts_no,
-                format!("{what} count `{}` is not a whole number", text(w)),
+                format!("{what} count `{}` is not a whole number", shown(w)),
             )
         })
     };
@@ -289,11 +315,11 @@ fn parse_with(
     for k in 0..n_vertices {
         let mut p = [0.0f64; 3];
         for c in &mut p {
-            let (word, no) = body
-                .next()
+            let (x, no) = body
+                .number(text::leading_f64)
                 .ok_or_else(|| truncated(k, n_vertices, "vertices"))?;
-            *c = number(word).ok_or_else(|| {
-                line_err(no, format!("vertex {k}: `{}` is not a number", text(word)))
+            *c = x.map_err(|word| {
+                line_err(no, format!("vertex {k}: `{}` is not a number", shown(word)))
             })?;
         }
         match detail.as_deref_mut() {
@@ -308,20 +334,28 @@ fn parse_with(
     let mut tally = SplitTally::default();
     let mut poly = Vec::new();
     for k in 0..n_faces {
-        let (first, no) = body.next().ok_or_else(|| truncated(k, n_faces, "faces"))?;
-        let n: usize = number(first).ok_or_else(|| {
+        let (n, no) = body
+            .number(text::leading_u64)
+            .ok_or_else(|| truncated(k, n_faces, "faces"))?;
+        let count = |first: &[u8]| {
             line_err(
                 no,
-                format!("face {k}: `{}` is not a vertex count", text(first)),
+                format!("face {k}: `{}` is not a vertex count", shown(first)),
             )
-        })?;
+        };
+        let n = match n {
+            Ok(n) => usize::try_from(n).map_err(|_| count(&[]))?,
+            Err(first) => return Err(count(first)),
+        };
         poly.clear();
         for _ in 0..n {
-            let (word, no) = body.next().ok_or_else(|| truncated(k, n_faces, "faces"))?;
-            let i: i64 = number(word).ok_or_else(|| {
+            let (i, no) = body
+                .number(text::leading_i64)
+                .ok_or_else(|| truncated(k, n_faces, "faces"))?;
+            let i = i.map_err(|word| {
                 line_err(
                     no,
-                    format!("face {k}: `{}` is not a vertex index", text(word)),
+                    format!("face {k}: `{}` is not a vertex index", shown(word)),
                 )
             })?;
             if i < 0 || i as u64 >= n_vertices {

@@ -12,7 +12,7 @@
 
 use std::path::Path;
 
-use super::text::Binary;
+use super::text::{self, Binary};
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -152,17 +152,22 @@ struct Tokens<'a> {
 }
 
 impl<'a> Tokens<'a> {
-    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+    /// Moves to the start of the next token; false at the end of the bytes.
+    fn reach_token(&mut self) -> bool {
         while let Some(&b) = self.bytes.get(self.pos) {
             if !b.is_ascii_whitespace() {
-                break;
+                return true;
             }
             if b == b'\n' {
                 self.line += 1;
             }
             self.pos += 1;
         }
-        if self.pos >= self.bytes.len() {
+        false
+    }
+
+    fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        if !self.reach_token() {
             return None;
         }
         let start = self.pos;
@@ -174,6 +179,24 @@ impl<'a> Tokens<'a> {
             self.pos += 1;
         }
         Some((&self.bytes[start..self.pos], self.line))
+    }
+
+    /// The next token as a number, in one pass when the number is the whole token; else `Err`
+    /// with the token, for the caller's message. `None` at the end of the bytes.
+    #[inline]
+    fn number(&mut self) -> Option<(Result<f64, &'a [u8]>, u64)> {
+        if !self.reach_token() {
+            return None;
+        }
+        let rest = &self.bytes[self.pos..];
+        if let Some((x, n)) = text::leading_f64(rest) {
+            if rest.get(n).is_none_or(u8::is_ascii_whitespace) {
+                self.pos += n;
+                return Some((Ok(x), self.line));
+            }
+        }
+        let (token, line) = self.next()?;
+        Some((Err(token), line))
     }
 
     /// Skips the rest of the current line (the name after `solid` / `endsolid`).
@@ -235,10 +258,10 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 }
                 let mut p = [0.0f64; 3];
                 for c in &mut p {
-                    let Some((num, l)) = tokens.next() else {
+                    let Some((x, l)) = tokens.number() else {
                         return err(line, "the file ends inside a vertex".into());
                     };
-                    *c = parse_f64(num).ok_or_else(|| {
+                    *c = x.map_err(|num| {
                         ReadError::new(format!(
                             "ASCII STL line {l}: `{}` is not a number - fix or re-export the file",
                             word(num)
@@ -264,7 +287,7 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             }
             _ => {
                 // Facet normals and vertex numbers were consumed above; anything else is not STL.
-                if parse_f64(tok).is_some() {
+                if text::parse_f64(tok).is_some() {
                     continue; // the three numbers after `facet normal`
                 }
                 return err(line, format!("unexpected `{}`", word(tok)));
@@ -299,15 +322,15 @@ fn keyword(tok: &[u8]) -> &[u8] {
         b"vertex",
         b"endloop",
     ];
+    // Most tokens are numbers, and most numbers are shorter or longer than any keyword.
+    if !(4..=8).contains(&tok.len()) {
+        return tok;
+    }
     WORDS
         .iter()
         .find(|w| w.eq_ignore_ascii_case(tok))
         .copied()
         .unwrap_or(tok)
-}
-
-fn parse_f64(token: &[u8]) -> Option<f64> {
-    std::str::from_utf8(token).ok()?.parse().ok()
 }
 
 #[cfg(test)]
