@@ -2,7 +2,8 @@
 //! (a closed grid torus of 1,000,000 triangles and 500,000 vertices) written as OBJ, ASCII PLY,
 //! OFF, ASCII STL, binary STL and binary PLY. Each file is read several times through
 //! `meshvet::formats::read` (file bytes from the page cache, so the figure is the parser's); the
-//! lowest, median and highest rates are printed, since a loaded machine makes single runs noisy.
+//! lowest, median and highest rates are printed, since a loaded machine makes single runs noisy,
+//! both by wall time and by the thread's CPU time (which other processes disturb less).
 //!
 //!     cargo bench --bench read              # every format
 //!     cargo bench --bench read -- obj stl   # the formats whose label contains a word
@@ -94,21 +95,20 @@ fn main() {
         fs::write(&path, &bytes).expect("write the file");
         let mb = bytes.len() as f64 / 1e6;
         drop(bytes);
-        let mut rates = Vec::new();
+        let (mut wall, mut cpu) = (Vec::new(), Vec::new());
         for run in 0..RUNS {
-            let (seconds, meshes) = timed(|| read(&path, case.format, &cx));
+            let (seconds, cpu_seconds, meshes) = timed(|| read(&path, case.format, &cx));
             assert_eq!(meshes[0].triangles.len(), 1_000_000, "{}", case.label);
             if run > 0 {
-                rates.push(mb / seconds);
+                wall.push(mb / seconds);
+                cpu.push(mb / cpu_seconds);
             }
         }
-        rates.sort_by(f64::total_cmp);
         println!(
-            "{:<11} {mb:>6.1} MB  {:>6.0} .. {:>6.0} MB/s (median {:.0})",
+            "{:<11} {mb:>6.1} MB  wall {}  cpu {}",
             case.label,
-            rates[0],
-            rates[rates.len() - 1],
-            rates[rates.len() / 2]
+            range(&mut wall),
+            range(&mut cpu)
         );
         let _ = fs::remove_file(&path);
     }
@@ -118,10 +118,37 @@ fn read(path: &Path, format: Format, cx: &ReadContext) -> Vec<Mesh> {
     formats::read(path, format, cx).expect("the generated file reads")
 }
 
-fn timed<T>(f: impl FnOnce() -> T) -> (f64, T) {
-    let start = Instant::now();
+/// `lowest .. highest MB/s (median m)`.
+fn range(rates: &mut [f64]) -> String {
+    rates.sort_by(f64::total_cmp);
+    format!(
+        "{:>5.0} .. {:>5.0} MB/s (median {:>5.0})",
+        rates[0],
+        rates[rates.len() - 1],
+        rates[rates.len() / 2]
+    )
+}
+
+/// Wall seconds, CPU seconds of this thread, and the result of `f`.
+fn timed<T>(f: impl FnOnce() -> T) -> (f64, f64, T) {
+    let (start, cpu) = (Instant::now(), thread_cpu_seconds());
     let out = f();
-    (start.elapsed().as_secs_f64(), out)
+    (
+        start.elapsed().as_secs_f64(),
+        thread_cpu_seconds() - cpu,
+        out,
+    )
+}
+
+/// CPU time this thread has used, in seconds.
+fn thread_cpu_seconds() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a valid timespec for the call to fill in.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
 }
 
 /// A coordinate as an exporter writes it: the shortest text of the f32 value (up to 9 digits).
