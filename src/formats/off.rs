@@ -48,96 +48,6 @@ impl<'a> Lines<'a> {
     }
 }
 
-/// Whitespace-separated tokens of the body, `#` comments skipped, with their 1-based lines.
-struct Cursor<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-    line: u64,
-}
-
-impl<'a> Cursor<'a> {
-    /// Moves to the start of the next token; false at the end of the bytes.
-    fn reach_token(&mut self) -> bool {
-        loop {
-            let Some(&b) = self.bytes.get(self.pos) else {
-                return false;
-            };
-            if b == b'#' {
-                self.skip_line();
-            } else if b.is_ascii_whitespace() {
-                if b == b'\n' {
-                    self.line += 1;
-                }
-                self.pos += 1;
-            } else {
-                return true;
-            }
-        }
-    }
-
-    fn next(&mut self) -> Option<(&'a [u8], u64)> {
-        if !self.reach_token() {
-            return None;
-        }
-        let start = self.pos;
-        while self
-            .bytes
-            .get(self.pos)
-            .is_some_and(|&b| !b.is_ascii_whitespace() && b != b'#')
-        {
-            self.pos += 1;
-        }
-        Some((&self.bytes[start..self.pos], self.line))
-    }
-
-    /// The next token as a number read by `leading` (a number at the start of the bytes and its
-    /// length), in one pass when the number is the whole token; else `Err` with the token, for
-    /// the caller's message. `None` at the end of the bytes.
-    #[inline]
-    fn number<T>(
-        &mut self,
-        leading: impl Fn(&[u8]) -> Option<(T, usize)>,
-    ) -> Option<(Result<T, &'a [u8]>, u64)> {
-        if !self.reach_token() {
-            return None;
-        }
-        let rest = &self.bytes[self.pos..];
-        if let Some((x, n)) = leading(rest) {
-            if rest
-                .get(n)
-                .is_none_or(|&b| b.is_ascii_whitespace() || b == b'#')
-            {
-                self.pos += n;
-                return Some((Ok(x), self.line));
-            }
-        }
-        let (token, line) = self.next()?;
-        Some((Err(token), line))
-    }
-
-    /// The rest of the current line (comment and surrounding blanks removed), then skips it.
-    fn rest_of_line(&mut self) -> &'a [u8] {
-        let start = self.pos;
-        let end = self.bytes[start..]
-            .iter()
-            .position(|&b| b == b'\n' || b == b'#')
-            .map_or(self.bytes.len(), |k| start + k);
-        self.skip_line();
-        self.bytes[start..end].trim_ascii()
-    }
-
-    /// Skips to the start of the next line.
-    fn skip_line(&mut self) {
-        match memchr::memchr(b'\n', &self.bytes[self.pos.min(self.bytes.len())..]) {
-            Some(k) => {
-                self.pos += k + 1;
-                self.line += 1;
-            }
-            None => self.pos = self.bytes.len(),
-        }
-    }
-}
-
 /// The first 40 bytes of a word, for a message.
 fn shown(w: &[u8]) -> String {
     String::from_utf8_lossy(&w[..w.len().min(40)]).into_owned()
@@ -302,11 +212,7 @@ fn parse_with(
     // The body is read as tokens that may cross lines (some writers wrap long faces); what
     // is left on a line after a vertex's x y z or a face's indices (normals, colours, texture
     // coordinates) is skipped.
-    let mut body = Cursor {
-        bytes: lines.rest,
-        pos: 0,
-        line: lines.line + 1,
-    };
+    let mut body = text::Tokens::<true>::new(lines.rest, lines.line + 1);
     let truncated = |k: u64, n: u64, what: &str| {
         ReadError::new(format!(
             "truncated OFF: the file ends after {k} of {n} {what} - re-export it"

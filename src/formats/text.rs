@@ -188,6 +188,111 @@ impl<'a> Iterator for Words<'a> {
     }
 }
 
+/// Whitespace-separated tokens across lines, with the 1-based line each starts on; with
+/// `COMMENTS`, `#` also ends a token and starts a comment that runs to the end of its line.
+/// Numbers are read in one pass from a token's first byte ([`Tokens::number`]).
+pub(crate) struct Tokens<'a, const COMMENTS: bool> {
+    bytes: &'a [u8],
+    pos: usize,
+    /// The line of the next byte.
+    pub line: u64,
+}
+
+impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
+    /// The tokens of `bytes`, whose first byte is on line `line`.
+    pub(crate) fn new(bytes: &'a [u8], line: u64) -> Self {
+        Tokens {
+            bytes,
+            pos: 0,
+            line,
+        }
+    }
+
+    #[inline]
+    fn ends_token(b: u8) -> bool {
+        b.is_ascii_whitespace() || (COMMENTS && b == b'#')
+    }
+
+    /// Moves to the start of the next token; false at the end of the bytes.
+    #[inline]
+    fn reach(&mut self) -> bool {
+        while let Some(&b) = self.bytes.get(self.pos) {
+            if COMMENTS && b == b'#' {
+                self.skip_line();
+            } else if b.is_ascii_whitespace() {
+                if b == b'\n' {
+                    self.line += 1;
+                }
+                self.pos += 1;
+            } else {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The next token and its line.
+    pub(crate) fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        if !self.reach() {
+            return None;
+        }
+        let start = self.pos;
+        while self
+            .bytes
+            .get(self.pos)
+            .is_some_and(|&b| !Self::ends_token(b))
+        {
+            self.pos += 1;
+        }
+        Some((&self.bytes[start..self.pos], self.line))
+    }
+
+    /// The next token as a number read by `leading` (the number at the start of some bytes and
+    /// its length: [`leading_f64`], [`leading_i64`], [`leading_u64`]): `Ok` when the number is the
+    /// whole token (the same as parsing the token), else `Err` with the token for the caller's
+    /// message. `None` at the end of the bytes.
+    #[inline]
+    pub(crate) fn number<T>(
+        &mut self,
+        leading: impl Fn(&[u8]) -> Option<(T, usize)>,
+    ) -> Option<(Result<T, &'a [u8]>, u64)> {
+        if !self.reach() {
+            return None;
+        }
+        let rest = &self.bytes[self.pos..];
+        if let Some((x, n)) = leading(rest) {
+            if rest.get(n).is_none_or(|&b| Self::ends_token(b)) {
+                self.pos += n;
+                return Some((Ok(x), self.line));
+            }
+        }
+        let (token, line) = self.next()?;
+        Some((Err(token), line))
+    }
+
+    /// The rest of the current line (without a comment and surrounding blanks), then skips it.
+    pub(crate) fn rest_of_line(&mut self) -> &'a [u8] {
+        let start = self.pos.min(self.bytes.len());
+        let end = self.bytes[start..]
+            .iter()
+            .position(|&b| b == b'\n' || (COMMENTS && b == b'#'))
+            .map_or(self.bytes.len(), |k| start + k);
+        self.skip_line();
+        self.bytes[start..end].trim_ascii()
+    }
+
+    /// Skips to the start of the next line.
+    pub(crate) fn skip_line(&mut self) {
+        match memchr::memchr(b'\n', &self.bytes[self.pos.min(self.bytes.len())..]) {
+            Some(k) => {
+                self.pos += k + 1;
+                self.line += 1;
+            }
+            None => self.pos = self.bytes.len(),
+        }
+    }
+}
+
 /// The `f64` that `str::parse::<f64>` gives for these bytes, or `None` where it gives an error.
 #[inline]
 pub(crate) fn parse_f64(bytes: &[u8]) -> Option<f64> {
@@ -265,12 +370,6 @@ pub(crate) fn leading_f64(bytes: &[u8]) -> Option<(f64, usize)> {
     fast_float2::parse_partial(bytes).ok()
 }
 
-/// `str::parse::<usize>` on bytes.
-#[inline]
-pub(crate) fn parse_usize(bytes: &[u8]) -> Option<usize> {
-    usize::try_from(parse_u64(bytes)?).ok()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -303,11 +402,22 @@ mod tests {
             text.parse::<u64>().ok(),
             "`{text}`"
         );
+        // A number read from a token's first byte is the token's number when it spans the token.
+        let whole = leading_f64(text.as_bytes()).filter(|&(_, n)| n == text.len());
         assert_eq!(
-            parse_usize(text.as_bytes()),
-            text.parse::<usize>().ok(),
+            whole.map(|(x, _)| x.to_bits()),
+            ours.map(f64::to_bits),
             "`{text}`"
         );
+        let longest = (1..=text.len())
+            .rev()
+            .filter(|&k| text.is_char_boundary(k))
+            .find_map(|k| text[..k].parse::<u64>().ok().map(|i| (i, k)));
+        let overflow =
+            longest.is_some_and(|(_, k)| text[k..].starts_with(|c: char| c.is_ascii_digit()));
+        if !overflow {
+            assert_eq!(leading_u64(text.as_bytes()), longest, "`{text}`");
+        }
     }
 
     /// Awkward numbers: more digits than an f64 holds (ties at the 17th digit and beyond decide
