@@ -10,6 +10,7 @@
 //! own positions, exactly as stored (the analysis welds); ASCII loops with more than three vertices
 //! are split by [`super::polygon`].
 
+use std::io::{Read as _, Seek as _};
 use std::path::Path;
 
 use super::text::{self, Binary};
@@ -18,8 +19,26 @@ use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let bytes = std::fs::read(path)?;
+    let mut file = std::fs::File::open(path)?;
+    let size = file.metadata()?.len();
+    // A binary file of exactly the size its header declares (the common case) is read in chunks,
+    // never held whole; anything else is read whole and judged by `parse`.
+    let mut header = [0u8; HEADER];
+    if size >= HEADER as u64 && file.read_exact(&mut header).is_ok() {
+        let n = declared(&header);
+        if HEADER as u64 + FACET as u64 * n == size {
+            return read_binary(&mut file, n, cx).map(|m| vec![m]);
+        }
+    }
+    file.rewind()?;
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes)?;
     parse(&bytes, cx).map(|m| vec![m])
+}
+
+/// The triangle count of a binary header.
+fn declared(header: &[u8; HEADER]) -> u64 {
+    u32::from_le_bytes([header[80], header[81], header[82], header[83]]) as u64
 }
 
 /// Size of the binary header plus the triangle count.
@@ -33,8 +52,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         mesh.notes.push("the file is empty".into());
         return Ok(mesh);
     }
-    let declared = (bytes.len() >= HEADER)
-        .then(|| u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64);
+    let declared = bytes.first_chunk::<HEADER>().map(declared);
     if let Some(n) = declared {
         if HEADER as u64 + FACET as u64 * n == bytes.len() as u64 {
             return parse_binary(bytes, n, cx);
@@ -114,100 +132,79 @@ fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {
     Ok(())
 }
 
+/// The `n` facets after the header of a binary file in memory.
 fn parse_binary(bytes: &[u8], n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
+    let n = checked(n, cx)?;
+    let mut positions = Vec::with_capacity(3 * n);
+    corners(&bytes[HEADER..HEADER + FACET * n], &mut positions);
+    Ok(binary_mesh(positions, n))
+}
+
+/// Facets read from a file per call: about 64 KB, in cache while they are decoded.
+const CHUNK: usize = 1310;
+
+/// The `n` facets of a binary file of exactly `84 + 50 n` bytes, read from `file` (past the
+/// header) a chunk at a time.
+fn read_binary(file: &mut std::fs::File, n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
+    let n = checked(n, cx)?;
+    let mut positions = Vec::with_capacity(3 * n);
+    let mut chunk = vec![0u8; FACET * CHUNK.min(n)];
+    let mut left = n;
+    while left > 0 {
+        let k = left.min(CHUNK);
+        file.read_exact(&mut chunk[..FACET * k]).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                ReadError::new(
+                    "the binary STL became shorter while it was read (another program is \
+                     writing it?) - scan it again when it is complete",
+                )
+            } else {
+                ReadError::from(e)
+            }
+        })?;
+        corners(&chunk[..FACET * k], &mut positions);
+        left -= k;
+    }
+    Ok(binary_mesh(positions, n))
+}
+
+/// `n` as a count of facets to read, within the limits and indexable.
+fn checked(n: u64, cx: &ReadContext) -> Result<usize, ReadError> {
     check_limit(n, cx)?;
     if 3 * n > u32::MAX as u64 {
         return Err(ReadError::new(format!(
             "binary STL with {n} triangles: more vertices than meshvet can index"
         )));
     }
-    // The size matched 84 + 50 n, so n facets are really there: the allocation is backed by data.
-    let n = n as usize;
-    let mut positions = Vec::with_capacity(3 * n);
-    let mut triangles = Vec::with_capacity(n);
-    let f = |b: &[u8], k: usize| {
-        f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]]) as f64
-    };
-    for (t, facet) in bytes[HEADER..].chunks_exact(FACET).enumerate() {
-        // Skip the facet normal (floats 0..3): the analysis derives orientation from the winding.
-        for v in 0..3 {
-            let k = 3 + 3 * v;
-            positions.push([f(facet, k), f(facet, k + 1), f(facet, k + 2)]);
-        }
-        let i = 3 * t as u32;
-        triangles.push([i, i + 1, i + 2]);
+    // The file size is 84 + 50 n (or more), so n facets are really there: allocations sized by n
+    // are backed by data.
+    Ok(n as usize)
+}
+
+/// Appends the three corners of every 50-byte facet of `facets`, exactly as stored. The facet
+/// normal (its first 12 bytes) is skipped: the analysis derives orientation from the winding.
+fn corners(facets: &[u8], positions: &mut Vec<[f64; 3]>) {
+    let (facets, _) = facets.as_chunks::<FACET>();
+    for f in facets {
+        let c = |k: usize| f32::from_le_bytes([f[k], f[k + 1], f[k + 2], f[k + 3]]) as f64;
+        positions.extend_from_slice(&[
+            [c(12), c(16), c(20)],
+            [c(24), c(28), c(32)],
+            [c(36), c(40), c(44)],
+        ]);
     }
+}
+
+/// The mesh of `n` facets whose corners are `positions`, in order.
+fn binary_mesh(positions: Vec<[f64; 3]>, n: usize) -> Mesh {
+    let triangles = (0..n as u32)
+        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        .collect();
     let mut mesh = Mesh::new(positions, triangles);
     if n == 0 {
         mesh.notes.push("binary STL with 0 triangles".into());
     }
-    Ok(mesh)
-}
-
-/// A whitespace-separated token and the 1-based line it starts on.
-struct Tokens<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-    line: u64,
-}
-
-impl<'a> Tokens<'a> {
-    /// Moves to the start of the next token; false at the end of the bytes.
-    fn reach_token(&mut self) -> bool {
-        while let Some(&b) = self.bytes.get(self.pos) {
-            if !b.is_ascii_whitespace() {
-                return true;
-            }
-            if b == b'\n' {
-                self.line += 1;
-            }
-            self.pos += 1;
-        }
-        false
-    }
-
-    fn next(&mut self) -> Option<(&'a [u8], u64)> {
-        if !self.reach_token() {
-            return None;
-        }
-        let start = self.pos;
-        while self
-            .bytes
-            .get(self.pos)
-            .is_some_and(|b| !b.is_ascii_whitespace())
-        {
-            self.pos += 1;
-        }
-        Some((&self.bytes[start..self.pos], self.line))
-    }
-
-    /// The next token as a number, in one pass when the number is the whole token; else `Err`
-    /// with the token, for the caller's message. `None` at the end of the bytes.
-    #[inline]
-    fn number(&mut self) -> Option<(Result<f64, &'a [u8]>, u64)> {
-        if !self.reach_token() {
-            return None;
-        }
-        let rest = &self.bytes[self.pos..];
-        if let Some((x, n)) = text::leading_f64(rest) {
-            if rest.get(n).is_none_or(u8::is_ascii_whitespace) {
-                self.pos += n;
-                return Some((Ok(x), self.line));
-            }
-        }
-        let (token, line) = self.next()?;
-        Some((Err(token), line))
-    }
-
-    /// Skips the rest of the current line (the name after `solid` / `endsolid`).
-    fn skip_line(&mut self) {
-        while let Some(&b) = self.bytes.get(self.pos) {
-            if b == b'\n' {
-                return;
-            }
-            self.pos += 1;
-        }
-    }
+    mesh
 }
 
 fn word(token: &[u8]) -> String {
@@ -215,11 +212,7 @@ fn word(token: &[u8]) -> String {
 }
 
 fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
-    let mut tokens = Tokens {
-        bytes,
-        pos: 0,
-        line: 1,
-    };
+    let mut tokens = text::Tokens::<false>::new(bytes, 1);
     let mut mesh = Mesh::default();
     let mut tally = SplitTally::default();
     let mut solids = 0u64;
@@ -258,7 +251,7 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 }
                 let mut p = [0.0f64; 3];
                 for c in &mut p {
-                    let Some((x, l)) = tokens.number() else {
+                    let Some((x, l)) = tokens.number(text::leading_f64) else {
                         return err(line, "the file ends inside a vertex".into());
                     };
                     *c = x.map_err(|num| {
