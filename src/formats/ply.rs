@@ -295,8 +295,29 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         match def.name.as_str() {
             "vertex" => body.vertices(def, &mut mesh.positions)?,
             "face" => {
-                let (roles, fixed) = (roles(def), FixedFace::of(def));
-                for i in 0..def.count {
+                let roles = roles(def);
+                let fixed = FixedFace::of(def).filter(|_| body.encoding != Encoding::Ascii);
+                let mut i = 0;
+                while i < def.count {
+                    // Binary triangles (most faces) go straight into the mesh, as `triangulate`
+                    // would put them (and the tally ignores triangles); any other face, or one
+                    // with an index out of range, is read below.
+                    if let Some(f) = fixed.as_ref().filter(|_| vertices_read_before_faces) {
+                        let limit = cx.limits.max_triangles;
+                        i += f.triangles(
+                            &mut body,
+                            def.count - i,
+                            n_vertices,
+                            limit,
+                            &mut mesh.triangles,
+                        );
+                        if mesh.triangles.len() as u64 > limit {
+                            return Err(over_limit(cx));
+                        }
+                        if i == def.count {
+                            break;
+                        }
+                    }
                     body.indices(def, &roles, fixed.as_ref(), i, &mut indices)?;
                     poly.clear();
                     for &index in &indices {
@@ -319,6 +340,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                     if mesh.triangles.len() as u64 > cx.limits.max_triangles {
                         return Err(over_limit(cx));
                     }
+                    i += 1;
                 }
             }
             "tristrips" if def.properties.keys().any(|k| is_index_list(k)) => {
@@ -438,31 +460,41 @@ fn ascii_record(
     xyz: &mut [f64; 3],
     indices: &mut Vec<i64>,
 ) -> Result<(), String> {
-    let mut tokens = text::words(line);
+    let mut tokens = text::Tokens::<false>::new(line, 0);
     for ((key, p), &role) in def.properties.iter().zip(roles) {
-        let token = tokens
-            .next()
-            .ok_or_else(|| format!("the line ends before property `{key}`"))?;
-        match &p.data_type {
-            PropertyType::Scalar(_) => {
-                if let Role::Axis(axis) = role {
-                    xyz[axis] = text::parse_f64(token).ok_or_else(|| {
-                        format!("`{}` is not a number (property `{key}`)", cut(token))
-                    })?;
-                }
-            }
-            PropertyType::List(..) => {
-                let n = text::parse_usize(token).ok_or_else(|| {
-                    format!("`{}` is not a list length (property `{key}`)", cut(token))
+        let missing = || format!("the line ends before property `{key}`");
+        match (&p.data_type, role) {
+            (PropertyType::Scalar(_), Role::Axis(axis)) => {
+                let (x, _) = tokens.number(text::leading_f64).ok_or_else(missing)?;
+                xyz[axis] = x.map_err(|token| {
+                    format!("`{}` is not a number (property `{key}`)", cut(token))
                 })?;
+            }
+            (PropertyType::Scalar(_), _) => {
+                tokens.next().ok_or_else(missing)?;
+            }
+            (PropertyType::List(..), _) => {
+                let (n, _) = tokens.number(text::leading_u64).ok_or_else(missing)?;
+                let n = match n.map(usize::try_from) {
+                    Ok(Ok(n)) => n,
+                    Ok(Err(_)) => return Err(format!("list `{key}` is too long")),
+                    Err(token) => {
+                        return Err(format!(
+                            "`{}` is not a list length (property `{key}`)",
+                            cut(token)
+                        ))
+                    }
+                };
                 for k in 0..n {
-                    let item = tokens.next().ok_or_else(|| {
-                        format!("list `{key}` declares {n} items but the line has {k}")
-                    })?;
+                    let declared =
+                        || format!("list `{key}` declares {n} items but the line has {k}");
                     if role == Role::Indices {
-                        indices.push(text::parse_i64(item).ok_or_else(|| {
+                        let (i, _) = tokens.number(text::leading_i64).ok_or_else(declared)?;
+                        indices.push(i.map_err(|item| {
                             format!("`{}` is not an integer (list `{key}`)", cut(item))
                         })?);
+                    } else {
+                        tokens.next().ok_or_else(declared)?;
                     }
                 }
             }
@@ -500,6 +532,27 @@ pub(crate) fn scalar(b: &[u8], t: &ScalarType, big: bool) -> f64 {
         ScalarType::UInt => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
         ScalarType::Float => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
         ScalarType::Double => f64::from_le_bytes(a),
+    }
+}
+
+/// The binary integer of type `t` at the start of `b` (at least its size long); a float type
+/// (never a list's length or an index list's type here) is cut to an integer.
+#[inline(always)]
+fn integer(b: &[u8], t: &ScalarType, big: bool) -> i64 {
+    let two = || [b[0], b[1]];
+    let four = || [b[0], b[1], b[2], b[3]];
+    match (t, big) {
+        (ScalarType::Char, _) => b[0] as i8 as i64,
+        (ScalarType::UChar, _) => b[0] as i64,
+        (ScalarType::Short, false) => i16::from_le_bytes(two()) as i64,
+        (ScalarType::Short, true) => i16::from_be_bytes(two()) as i64,
+        (ScalarType::UShort, false) => u16::from_le_bytes(two()) as i64,
+        (ScalarType::UShort, true) => u16::from_be_bytes(two()) as i64,
+        (ScalarType::Int, false) => i32::from_le_bytes(four()) as i64,
+        (ScalarType::Int, true) => i32::from_be_bytes(four()) as i64,
+        (ScalarType::UInt, false) => u32::from_le_bytes(four()) as i64,
+        (ScalarType::UInt, true) => u32::from_be_bytes(four()) as i64,
+        (ScalarType::Float | ScalarType::Double, _) => scalar(b, t, big) as i64,
     }
 }
 
@@ -568,14 +621,57 @@ impl FixedFace {
         })
     }
 
+    /// The three indices of the record at the start of `rest` when it is a triangle, and the
+    /// bytes after it; `None` for a short record or another length ([`FixedFace::read`] then).
+    #[inline]
+    fn triangle<'a>(&self, rest: &'a [u8], big: bool) -> Option<([i64; 3], &'a [u8])> {
+        let size = scalar_size(&self.item);
+        let items = self.before + scalar_size(&self.count);
+        let end = items + 3 * size + self.after;
+        let record = rest.get(..end)?;
+        if integer(&record[self.before..], &self.count, big) != 3 {
+            return None;
+        }
+        let b = &record[items..];
+        let t = [0, size, 2 * size].map(|at| integer(&b[at..], &self.item, big));
+        Some((t, &rest[end..]))
+    }
+
+    /// Reads up to `count` faces from `body` straight into `out` while they are triangles whose
+    /// indices are below `n_vertices`, stopping too once `out` holds more than `limit`
+    /// triangles; returns how many it read.
+    fn triangles(
+        &self,
+        body: &mut Body<'_>,
+        count: usize,
+        n_vertices: usize,
+        limit: u64,
+        out: &mut Vec<[u32; 3]>,
+    ) -> usize {
+        let big = body.big();
+        let mut read = 0;
+        while read < count && out.len() as u64 <= limit {
+            let Some((t, rest)) = self.triangle(body.rest, big) else {
+                break;
+            };
+            if t.iter().any(|&k| k < 0 || k as usize >= n_vertices) {
+                break;
+            }
+            out.push(t.map(|k| k as u32));
+            body.rest = rest;
+            read += 1;
+        }
+        read
+    }
+
     /// The indices of the record at the start of `rest` and the bytes after it; `None` when the
     /// record is short or its length negative (the generic reader then says what is wrong).
     #[inline]
     fn read<'a>(&self, rest: &'a [u8], big: bool, indices: &mut Vec<i64>) -> Option<&'a [u8]> {
         let count_size = scalar_size(&self.count);
         let head = rest.get(self.before..self.before + count_size)?;
-        let n = scalar(head, &self.count, big);
-        if n < 0.0 {
+        let n = integer(head, &self.count, big);
+        if n < 0 {
             return None;
         }
         let item_size = scalar_size(&self.item);
@@ -585,23 +681,11 @@ impl FixedFace {
             .checked_add(items_at + self.after)?;
         let record = rest.get(..end)?;
         let items = &record[items_at..end - self.after];
-        match (&self.item, big) {
-            (ScalarType::Int, false) => indices.extend(
-                items
-                    .chunks_exact(4)
-                    .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as i64),
-            ),
-            (ScalarType::UInt, false) => indices.extend(
-                items
-                    .chunks_exact(4)
-                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as i64),
-            ),
-            (t, _) => indices.extend(
-                items
-                    .chunks_exact(item_size)
-                    .map(|b| scalar(b, t, big) as i64),
-            ),
-        }
+        indices.extend(
+            items
+                .chunks_exact(item_size)
+                .map(|b| integer(b, &self.item, big)),
+        );
         Some(&rest[end..])
     }
 }
@@ -953,6 +1037,71 @@ mod tests {
             assert!(m.positions[2][0].is_nan());
             assert!(m.notes.iter().any(|n| n.contains("`edge`")));
         }
+    }
+
+    /// A binary file in the layouts read in bulk, with scalars around the axes and the list:
+    /// vertices `float x, uchar flag, float y, float z` (a unit square, 0 1 2 3 counter-clockwise)
+    /// and faces `uchar a, list <count> int vertex_indices, short b`. Faces: `faces`, each a list
+    /// of indices; `count` is the list's length type (`uchar` or `char`).
+    fn bulk(count: &str, faces: &[&[i32]]) -> Vec<u8> {
+        let mut b = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+             property uchar flag\nproperty float y\nproperty float z\nelement face {}\n\
+             property uchar a\nproperty list {count} int vertex_indices\nproperty short b\n\
+             end_header\n",
+            faces.len()
+        )
+        .into_bytes();
+        for [x, y] in [[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] {
+            b.extend(x.to_le_bytes());
+            b.push(7);
+            b.extend(y.to_le_bytes());
+            b.extend(0f32.to_le_bytes());
+        }
+        for face in faces {
+            b.push(9);
+            b.push(face.len() as u8);
+            for i in *face {
+                b.extend(i.to_le_bytes());
+            }
+            b.extend((-2i16).to_le_bytes());
+        }
+        b
+    }
+
+    /// Triangle, square, triangle: 1 + 2 + 1 triangles, the square split as a fan (convex); the
+    /// bulk reader stops at the square and takes up again after it. An index out of range, a
+    /// record cut short and a negative length are the generic reader's errors, naming the face.
+    #[test]
+    fn binary_bulk_layouts_read_every_face_and_keep_the_errors() {
+        let m = parse(
+            &bulk("uchar", &[&[0, 1, 2], &[0, 1, 2, 3], &[1, 2, 3]]),
+            &cx(),
+        )
+        .unwrap();
+        assert_eq!(m.positions[2], [1.0, 1.0, 0.0]);
+        assert_eq!(
+            m.triangles,
+            vec![[0, 1, 2], [0, 1, 2], [0, 2, 3], [1, 2, 3]]
+        );
+        let e = parse(&bulk("uchar", &[&[0, 1, 2], &[1, 2, 9]]), &cx())
+            .unwrap_err()
+            .0;
+        assert!(
+            e.starts_with("PLY face 1: vertex index 9 is out of range"),
+            "{e}"
+        );
+        let b = bulk("uchar", &[&[0, 1, 2], &[1, 2, 3]]);
+        let e = parse(&b[..b.len() - 3], &cx()).unwrap_err().0;
+        assert!(e.contains("ends inside `face` element 1"), "{e}");
+        let mut b = bulk("char", &[&[0, 1, 2], &[1, 2, 3]]);
+        let second = b.len() - (1 + 1 + 12 + 2) + 1;
+        b[second] = 0xFF; // a length of -1
+        let e = parse(&b, &cx()).unwrap_err().0;
+        assert!(
+            e.contains("PLY face 1: List length cannot be negative"),
+            "{e}"
+        );
     }
 
     #[test]
