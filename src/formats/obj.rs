@@ -272,9 +272,8 @@ fn parse_with(
     let mut joined = String::new();
     let mut joined_line = 0u64;
     let mut start = 0;
-    for line_no in 1u64.. {
-        let end =
-            memchr::memchr(b'\n', &text.as_bytes()[start..]).map_or(text.len(), |i| start + i);
+    let ends = memchr::memchr_iter(b'\n', text.as_bytes()).chain([text.len()]);
+    for (end, line_no) in ends.zip(1u64..) {
         // Cut at line feeds: always character boundaries.
         let raw = text.get(start..end).unwrap_or_default();
         let line = raw.strip_suffix('\r').unwrap_or(raw);
@@ -291,9 +290,6 @@ fn parse_with(
             p.statement(&statement, joined_line)?;
         } else {
             p.statement(line, line_no)?;
-        }
-        if end == text.len() {
-            break;
         }
         start = end + 1;
     }
@@ -579,7 +575,7 @@ impl Parser<'_> {
     }
 
     /// Adds corner `i` (as written: 1-based, or negative for relative) to the face being read.
-    #[inline]
+    #[inline(always)]
     fn corner(&mut self, i: i64, forward: &mut bool, line_no: u64) -> Result<(), ReadError> {
         let n = self.mesh.positions.len() as i64;
         let index = match i {
@@ -622,9 +618,13 @@ impl Parser<'_> {
 
     /// Splits the face read into `self.poly` into triangles (later, when it names vertices not
     /// read yet).
+    #[inline]
     fn split_face(&mut self, forward: bool, line_no: u64) -> Result<(), ReadError> {
         let before = self.mesh.triangles.len();
-        if forward && self.poly.len() > 3 {
+        if let [a, b, c] = self.poly[..] {
+            // What `triangulate` does with a triangle, known or not (the tally ignores it).
+            self.mesh.triangles.push([a, b, c]);
+        } else if forward && self.poly.len() > 3 {
             // Positions not known yet: reserve the n-2 slots, split at the end.
             self.deferred.push((before, line_no, self.poly.clone()));
             self.mesh
