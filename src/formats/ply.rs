@@ -185,8 +185,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         return Ok(mesh);
     }
     if !(bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r")) {
-        if let Some(binary) = Binary::of(bytes) {
-            return Err(binary.error("PLY"));
+        // Binary PLY exists: only another format's signature says more than the line below.
+        if let Some(other) = Binary::known(bytes) {
+            return Err(other.error("PLY"));
         }
         return Err(ReadError::new(
             "not a PLY file: it does not start with the line `ply` - check that the file really \

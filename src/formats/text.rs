@@ -3,8 +3,8 @@
 //!
 //! Binary content is judged on the first [`SAMPLE`] bytes: a well-known signature (an image, an
 //! archive, another mesh format) names what the file is; otherwise a zero byte, control
-//! characters making up more than a sliver of the bytes, or bytes that are mostly not UTF-8 mean
-//! binary data. Text in a legacy 8-bit encoding (Latin-1 names and comments are common in OBJ
+//! characters making up more than a sliver of the bytes (1 in 64), or bytes that are mostly not
+//! UTF-8 (a quarter), mean binary data; fewer than 4 such bytes never do. Text in a legacy 8-bit encoding (Latin-1 names and comments are common in OBJ
 //! files) has neither control characters nor many invalid sequences, so it stays text; so does a
 //! file with a short binary preamble before its text.
 //!
@@ -17,6 +17,10 @@ use super::ReadError;
 
 /// How many leading bytes decide whether a file is text.
 pub(crate) const SAMPLE: usize = 8192;
+
+/// Fewer control characters (or bytes of invalid UTF-8) than this never make a file binary,
+/// however short it is.
+const MIN_ODD: usize = 4;
 
 /// Signatures of formats that end up renamed to a mesh text extension: what a person would call
 /// the file. A file starting with one of these is not text of any mesh format.
@@ -98,14 +102,18 @@ impl Binary {
             return Some(Binary::Zero(at));
         }
         let controls = sample.iter().filter(|&&b| is_control(b)).count();
-        // Text has none; 1 in 64 is far below the ~1 in 9 of compressed or random data.
-        if controls > 0 && controls * 64 >= sample.len() {
+        // Text has none (a stray escape code in a comment, at most a few); 1 in 64 is far below
+        // the ~1 in 9 of compressed or random data.
+        if controls >= MIN_ODD && controls * 64 >= sample.len() {
             let first = sample.iter().position(|&b| is_control(b)).unwrap_or(0);
             return Some(Binary::Control(first));
         }
         // Latin-1 names or comments make isolated invalid bytes; binary data is about half.
-        if !sample.is_ascii() && invalid_utf8_bytes(sample) * 4 >= sample.len() {
-            return Some(Binary::NotText);
+        if !sample.is_ascii() {
+            let invalid = invalid_utf8_bytes(sample);
+            if invalid >= MIN_ODD && invalid * 4 >= sample.len() {
+                return Some(Binary::NotText);
+            }
         }
         None
     }
@@ -590,7 +598,8 @@ mod tests {
     }
 
     /// 8 KiB of text with k control bytes: 127 (under 1 in 64 of 8192) is still text, 128 is
-    /// binary; the same in a 640-byte file: 9 stay text (9 * 64 < 640), 10 do not.
+    /// binary; the same in a 640-byte file: 9 stay text (9 * 64 < 640), 10 do not; and in any
+    /// file, fewer than 4 stay text.
     #[test]
     fn control_characters_are_binary_past_one_in_sixty_four() {
         for (len, text, binary) in [(8192, 127, 128), (640, 9, 10)] {
@@ -606,6 +615,17 @@ mod tests {
                 "{binary} controls"
             );
         }
+        // Three control characters in 64 bytes are not binary, four in 256 bytes are.
+        let mut b = text_of(64);
+        b[1] = 0x1b;
+        b[9] = 0x1b;
+        b[17] = 0x1b;
+        assert_eq!(Binary::of(&b), None);
+        let mut b = text_of(256);
+        for k in [1, 9, 17, 25] {
+            b[k] = 0x1b;
+        }
+        assert_eq!(Binary::of(&b), Some(Binary::Control(1)));
         // Past the sample nothing counts; tab, CR, FF, VT and a DOS end-of-file mark are text.
         let mut b = text_of(SAMPLE);
         b.extend([1u8; 1000]);
@@ -615,15 +635,19 @@ mod tests {
     }
 
     /// Latin-1 comments (one invalid byte per accented letter) are text; bytes of which a quarter
-    /// or more are invalid UTF-8 are not.
+    /// or more are invalid UTF-8 are not, if there are at least 4 of them.
     #[test]
     fn invalid_utf8_is_binary_only_when_dense() {
         let mut b = b"# caf\xe9 cr\xe8me br\xfbl\xe9e\n".to_vec();
         b.extend(text_of(64));
         assert_eq!(Binary::of(&b), None);
-        // 3 invalid bytes in 12: 25%.
-        assert_eq!(Binary::of(b"\xe9\xe8\xfbv 0 0 0\n "), Some(Binary::NotText));
-        assert_eq!(Binary::of(b"\xe9\xe8v 0 0 0 0 0\n "), None);
+        // 4 invalid bytes in 16: 25%; 4 in 17 and 3 in 12 are text.
+        assert_eq!(
+            Binary::of(b"\xe9\xe8\xfb\xfbv 0 0 0\n 0 0"),
+            Some(Binary::NotText)
+        );
+        assert_eq!(Binary::of(b"\xe9\xe8\xfb\xfbv 0 0 0\n 0 00"), None);
+        assert_eq!(Binary::of(b"\xe9\xe8\xfbv 0 0 0\n "), None);
         // Valid UTF-8 of any density is text; a character cut by the sample's end is not invalid.
         assert_eq!(Binary::of("ééééé".as_bytes()), None);
         assert_eq!(invalid_utf8_bytes(b"ab\xc3"), 0);
