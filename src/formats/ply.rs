@@ -301,8 +301,8 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 let mut i = 0;
                 while i < def.count {
                     // Binary triangles (most faces) go straight into the mesh, as `triangulate`
-                    // would put them (and the tally ignores triangles); any other face, or one
-                    // with an index out of range, is read below.
+                    // would put them (and the tally ignores triangles), as do ASCII ones below;
+                    // any other face, or one with an index out of range, is read below.
                     if let Some(f) = fixed.as_ref().filter(|_| vertices_read_before_faces) {
                         let limit = cx.limits.max_triangles;
                         i += f.triangles(
@@ -331,12 +331,14 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                         }
                         poly.push(index as u32);
                     }
-                    if vertices_read_before_faces {
+                    if !vertices_read_before_faces {
+                        faces.push((i as u64, poly.clone()));
+                    } else if let [a, b, c] = poly[..] {
+                        mesh.triangles.push([a, b, c]);
+                    } else {
                         let split =
                             polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
                         tally.add(split, i as u64);
-                    } else {
-                        faces.push((i as u64, poly.clone()));
                     }
                     if mesh.triangles.len() as u64 > cx.limits.max_triangles {
                         return Err(over_limit(cx));
