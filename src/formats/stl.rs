@@ -62,11 +62,19 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     if starts_with_solid(bytes) && Binary::of(bytes).is_none() {
         return parse_ascii(bytes, cx);
     }
-    // Binary data is binary STL, but not an image, an archive or another mesh format.
-    if let Some(other) = Binary::known(bytes) {
+    // Binary data is binary STL, but not an image, an archive or another mesh format. A UTF-16
+    // byte order mark (two bytes a binary header may start with) is said only of a file that is
+    // no binary STL either.
+    let other = Binary::known(bytes);
+    if let Some(other @ Binary::Known(_)) = other {
         return Err(other.error("STL"));
     }
     match declared {
+        _ if other == Some(Binary::Utf16)
+            && declared.is_none_or(|n| HEADER as u64 + FACET as u64 * n > bytes.len() as u64) =>
+        {
+            Err(Binary::Utf16.error("STL"))
+        }
         None => Err(ReadError::new(format!(
             "not an STL file: {} bytes, too short for a binary STL (at least 84 bytes) and it does \
              not start with `solid` - re-export the file",
@@ -411,6 +419,29 @@ mod tests {
             .unwrap_err()
             .0
             .contains("looks like a PNG image, not an STL file"));
+    }
+
+    /// UTF-16 text is named; a binary header that happens to start with the same two bytes
+    /// (`FF FE`) is still binary: 2 facets and 3 bytes of padding, read with a note.
+    #[test]
+    fn utf16_text_is_named_but_a_binary_header_may_start_like_it() {
+        let text: Vec<u8> = "solid x\nendsolid x\n"
+            .encode_utf16()
+            .flat_map(u16::to_le_bytes)
+            .collect();
+        let mut utf16 = vec![0xFF, 0xFE];
+        utf16.extend(&text);
+        let e = parse(&utf16, &cx()).unwrap_err().0;
+        assert!(e.contains("UTF-16"), "{e}");
+        let mut b = binary(&[TRI, TRI], b"\xff\xfe binary");
+        b.extend(b"\n\n\n");
+        let m = parse(&b, &cx()).unwrap();
+        assert_eq!(m.triangles.len(), 2);
+        assert!(
+            m.notes[0].contains("3 byte(s) after the 2 triangles"),
+            "{:?}",
+            m.notes
+        );
     }
 
     #[test]
