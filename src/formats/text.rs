@@ -324,26 +324,35 @@ pub(crate) fn leading_i64(bytes: &[u8]) -> Option<(i64, usize)> {
         b'+' => (false, 1),
         _ => (false, 0),
     };
-    // Accumulated negatively: i64::MIN has no positive counterpart.
-    let mut value = 0i64;
+    let (magnitude, end) = leading_digits(bytes, at)?;
+    if negative {
+        // i64::MIN has no positive counterpart.
+        (magnitude <= i64::MIN.unsigned_abs()).then(|| (magnitude.wrapping_neg() as i64, end))
+    } else {
+        i64::try_from(magnitude).ok().map(|i| (i, end))
+    }
+}
+
+/// The value of the ASCII digits of `bytes` from `at` to the first other byte, and where they
+/// end; `None` without a digit or above `u64::MAX`.
+#[inline(always)]
+fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
+    let mut value = 0u64;
     let mut end = at;
     while let Some(&b) = bytes.get(end) {
         let d = b.wrapping_sub(b'0');
         if d > 9 {
             break;
         }
-        value = value.checked_mul(10)?.checked_sub(d as i64)?;
+        // 19 digits always fit a u64: only longer numbers need the checked steps.
+        value = if end - at < 19 {
+            value * 10 + d as u64
+        } else {
+            value.checked_mul(10)?.checked_add(d as u64)?
+        };
         end += 1;
     }
-    if end == at {
-        return None;
-    }
-    let value = if negative {
-        value
-    } else {
-        value.checked_neg()?
-    };
-    Some((value, end))
+    (end > at).then_some((value, end))
 }
 
 /// `str::parse::<u64>` on bytes: an optional `+`, then one or more ASCII digits, in range.
@@ -358,18 +367,7 @@ pub(crate) fn parse_u64(bytes: &[u8]) -> Option<u64> {
 /// first other byte) and its length in bytes; `None` without a digit or out of range.
 #[inline]
 pub(crate) fn leading_u64(bytes: &[u8]) -> Option<(u64, usize)> {
-    let at = usize::from(bytes.first() == Some(&b'+'));
-    let mut value = 0u64;
-    let mut end = at;
-    while let Some(&b) = bytes.get(end) {
-        let d = b.wrapping_sub(b'0');
-        if d > 9 {
-            break;
-        }
-        value = value.checked_mul(10)?.checked_add(d as u64)?;
-        end += 1;
-    }
-    (end > at).then_some((value, end))
+    leading_digits(bytes, usize::from(bytes.first() == Some(&b'+')))
 }
 
 /// The `f64` at the start of `bytes` as [`parse_f64`] reads it, and its length in bytes.
