@@ -1,14 +1,16 @@
 //! OBJ (+MTL) reader: our own line parser for the geometry, tobj only for the material library.
 //!
 //! tobj drops unreferenced vertices, renumbers them by first use, splits by `usemtl` and cannot
-//! name a line (CRATES.md 5.6); a validator needs the file's own vertex list. So `v` lines become
+//! name a line; a validator needs the file's own vertex list. So `v` lines become
 //! `Mesh::positions` in file order, as stored (NaN kept), and `f` lines become triangles indexing
 //! them (1-based, negative = relative, polygons split by [`super::polygon`]). One file is one mesh
 //! whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` are recognised and skipped for
 //! now; points and lines are counted into notes. `mtllib` files are read with tobj under
 //! `catch_unwind` (it panics on short colour lines), only when they are regular files inside the
 //! scanned tree (after symbolic links too, [`super::contain`]) and within `limits.max_file_bytes`;
-//! any MTL trouble is a note, never an error.
+//! any MTL trouble is a note, never an error. Binary content is refused ([`super::text`]). The
+//! common `v x y z` and `f a b c` lines are read in one pass over their bytes; anything else in
+//! them sends the line to the word-by-word reader, which owns every message.
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -866,7 +868,7 @@ fn check_mtl(location: &Location, name: &str, line: u64, limits: &Limits) -> Opt
 
 /// Parses MTL bytes with tobj; trouble (including a tobj panic) becomes a note.
 fn check_mtl_bytes(name: &str, bytes: &[u8]) -> Option<String> {
-    // tobj panics on colour lines with fewer than 3 numbers (CRATES.md 5.1); find them first so
+    // tobj panics on colour lines with fewer than 3 numbers; find them first so
     // the note can name the line, and never hand them to tobj.
     let text = String::from_utf8_lossy(bytes);
     for (k, l) in text.lines().enumerate() {

@@ -5,7 +5,8 @@
 //! or the next. `#` starts a comment anywhere. Each vertex is a line whose first three numbers are
 //! x y z (the rest of the line, whatever the variant, is ignored); each face is a line
 //! `n i0 ... i(n-1) [colour]`. Counts are checked against the file size before anything is
-//! allocated, indices are range-checked, and polygons are split by [`super::polygon`].
+//! allocated, indices are range-checked, and polygons are split by [`super::polygon`]. Binary
+//! content that is not `OFF BINARY` is refused with what it looks like ([`super::text`]).
 
 use std::path::Path;
 

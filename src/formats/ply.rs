@@ -1,12 +1,19 @@
-//! PLY reader (ASCII, binary little and big endian) on `ply-rs-bw` with our own `PropertyAccess`
-//! structs (its `DefaultElement` is a map per vertex: CRATES.md 5.8).
+//! PLY reader (ASCII, binary little and big endian): the header parsed by `ply-rs-bw`, the payload
+//! read here.
 //!
-//! The header is parsed by the crate; before any payload is read, every element count is checked
-//! against the bytes left in the file (a header claiming 4 billion vertices in a 1 KB file fails at
-//! once, without allocating). The payload is then read one element at a time, so faces go straight
-//! into triangles (split by [`super::polygon`]) and other elements are skipped without being kept.
-//! Vertex `x y z` may have any numeric type; face indices come from `vertex_indices` or
-//! `vertex_index` lists of any integer type and are range-checked here.
+//! Before any payload is read, every element count is checked against the bytes left in the file
+//! (a header claiming 4 billion vertices in a 1 KB file fails at once, without allocating). Each
+//! property's role (a vertex coordinate, a face's index list, or nothing) is worked out once per
+//! element. Binary vertices made only of scalars are decoded as fixed records in one pass, and
+//! binary faces of one index list with scalars around it (`list uchar int vertex_indices` is the
+//! common case) record by record without a per-face allocation, triangles straight into the mesh;
+//! any other layout, and the record where a bulk read stops (short, a negative length, an index
+//! out of range), goes through ply-rs's generic element reader with our own `PropertyAccess`
+//! structs (its `DefaultElement` is a map per vertex), which says exactly what is wrong. ASCII
+//! lines are split here (ply-rs's grammar rejects `nan` and `inf`), numbers parsed from bytes.
+//! Faces become triangles (polygons split by [`super::polygon`]); other elements are skipped
+//! without being kept. Vertex `x y z` may have any numeric type; face indices come from
+//! `vertex_indices` or `vertex_index` lists of any integer type and are range-checked here.
 
 use std::path::Path;
 

@@ -1,14 +1,16 @@
-//! STL reader (ASCII and binary), our own rather than stl_io (CRATES.md 5.7: fragile detection, only
-//! the first `solid`, -0.0 welded apart).
+//! STL reader (ASCII and binary), our own rather than stl_io (whose detection is fragile, which
+//! reads only the first `solid` and welds -0.0 apart from 0.0).
 //!
 //! Detection: a file is binary exactly when its size is `84 + 50 n` for the triangle count `n` in its
 //! header, even when it starts with `solid` (many exporters write that into the binary header).
 //! Otherwise a file starting with `solid` (and holding text) is parsed as ASCII. Anything else is
 //! binary: a file longer than `84 + 50 n` is read as its `n` declared facets with a note about the
 //! bytes after them (exporters pad files), and a shorter one is truncated, reported with the
-//! declared and actual counts. Every facet contributes its
-//! own positions, exactly as stored (the analysis welds); ASCII loops with more than three vertices
-//! are split by [`super::polygon`].
+//! declared and actual counts; another format's signature or UTF-16 text is named instead
+//! ([`super::text`]). Every facet contributes its own positions, exactly as stored (the analysis
+//! welds); ASCII loops with more than three vertices are split by [`super::polygon`]. A binary
+//! file of exactly the declared size is read from disk in chunks and decoded as fixed 50-byte
+//! records, never held whole.
 
 use std::io::{Read as _, Seek as _};
 use std::path::Path;
