@@ -344,6 +344,89 @@ fn latin1_names_and_a_short_binary_preamble_stay_text() {
     assert_eq!(m.triangles.len(), 400);
 }
 
+/// Awkward coordinates read by every text reader to the very `f64` the standard parser gives
+/// (a NaN for a NaN): 17+ significant digits, ties, subnormals, just past the largest double,
+/// overflow and underflow, signed zeros, `.5`, `5.`, `+3` and the infinity and NaN spellings.
+#[test]
+fn awkward_numbers_read_as_the_standard_parser_reads_them() {
+    // Nine vertices: three STL facets.
+    const NUMBERS: [&str; 27] = [
+        "0.1",
+        "-0",
+        "+3",
+        ".5",
+        "5.",
+        "-.5e-3",
+        "1e400",
+        "-1e400",
+        "1e-400",
+        "4.9e-324",
+        "2.2250738585072011e-308",
+        "1.7976931348623158e308",
+        "1.7976931348623159e308",
+        "3.14159265358979323846264338327950288",
+        "9007199254740993",
+        "0.30000000000000004",
+        "123456789012345678901234567890e-20",
+        "inf",
+        "-Infinity",
+        "+INF",
+        "nan",
+        "-NaN",
+        "NAN",
+        "1E+2",
+        "-0.0",
+        "1e-5",
+        "000.000001",
+    ];
+    let triples: Vec<[&str; 3]> = NUMBERS.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let n = triples.len();
+    let mut obj = String::new();
+    let mut off = format!("OFF\n{n} 1 0\n");
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\n\
+         property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    );
+    let mut stl = String::from("solid s\n");
+    for (k, [x, y, z]) in triples.iter().enumerate() {
+        obj.push_str(&format!("v {x} {y}\t{z}\n"));
+        off.push_str(&format!("{x} {y} {z} # comment\n"));
+        ply.push_str(&format!("{x} {y} {z}\n"));
+        if k % 3 == 0 {
+            stl.push_str("facet normal 0 0 0\nouter loop\n");
+        }
+        stl.push_str(&format!("vertex {x} {y} {z}\n"));
+        if k % 3 == 2 {
+            stl.push_str("endloop\nendfacet\n");
+        }
+    }
+    obj.push_str("f 1 2 3\n");
+    off.push_str("3 0 1 2\n");
+    ply.push_str("3 0 1 2\n");
+    stl.push_str("endsolid s\n");
+    let expected: Vec<[f64; 3]> = triples
+        .iter()
+        .map(|t| t.map(|x| x.parse::<f64>().unwrap()))
+        .collect();
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    for (name, text) in [
+        ("a.obj", obj),
+        ("a.off", off),
+        ("a.ply", ply),
+        ("a.stl", stl),
+    ] {
+        let m = ok(name, text.as_bytes());
+        assert!(m.notes.is_empty(), "{name}: {:?}", m.notes);
+        assert_eq!(m.positions.len(), n, "{name}");
+        for (got, want) in m.positions.iter().zip(&expected) {
+            assert!(
+                (0..3).all(|k| same(got[k], want[k])),
+                "{name}: {got:?} vs {want:?}"
+            );
+        }
+    }
+}
+
 /// Every mesh file of the shared corpus loads without a panic, and where the reference libraries
 /// agree unanimously (k/k, k >= 2) on the triangle count, ours is the same.
 #[test]
