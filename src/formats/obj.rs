@@ -3,9 +3,10 @@
 //! tobj drops unreferenced vertices, renumbers them by first use, splits by `usemtl` and cannot
 //! name a line; a validator needs the file's own vertex list. So `v` lines become
 //! `Mesh::positions` in file order, as stored (NaN kept), and `f` lines become triangles indexing
-//! them (1-based, negative = relative, polygons split by [`super::polygon`]). One file is one mesh
-//! whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` are recognised and skipped for
-//! now; points and lines are counted into notes. `mtllib` files are read with tobj under
+//! them (1-based, negative = relative, polygons split by [`crate::geometry::polygon`]). One file is
+//! one mesh whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` play no part in the
+//! topology; a repairing scan keeps them (with each face's polygon and corners) for the writer of the
+//! repaired copy ([`read_retaining`]); points and lines are counted into notes. `mtllib` files are read with tobj under
 //! `catch_unwind` (it panics on short colour lines), only when they are regular files inside the
 //! scanned tree (after symbolic links too, [`super::contain`]) and within `limits.max_file_bytes`;
 //! any MTL trouble is a note, never an error. Binary content is refused ([`super::text`]). The
