@@ -46,22 +46,17 @@ impl JsonReport {
 /// The JSON object of one mesh (see the module docs).
 pub fn record(outcome: &Outcome) -> Value {
     let mut object = outcome.row.json();
-    object.insert(
-        "findings".to_owned(),
-        outcome.findings.iter().map(finding).collect(),
-    );
-    object.insert(
-        "repairs".to_owned(),
-        outcome.repairs.iter().map(repair).collect(),
-    );
-    object.insert(
-        "findings_after".to_owned(),
-        outcome.findings_after.iter().map(finding).collect(),
-    );
-    object.insert(
-        "shells".to_owned(),
-        outcome.shells.iter().map(shell).collect(),
-    );
+    for (key, list) in [
+        ("findings", outcome.findings.iter().map(finding).collect()),
+        ("repairs", outcome.repairs.iter().map(repair).collect()),
+        (
+            "findings_after",
+            outcome.findings_after.iter().map(finding).collect(),
+        ),
+        ("shells", outcome.shells.iter().map(shell).collect()),
+    ] {
+        object.insert(key.to_owned(), Value::Array(list));
+    }
     Value::Object(object)
 }
 

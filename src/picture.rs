@@ -640,11 +640,9 @@ mod tests {
     /// second face runs 2 -> 1 and nothing is marked.
     #[test]
     fn inconsistent_edges_are_marked() {
+        #[rustfmt::skip]
         let positions = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [1.0, 1.0, 0.2],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.2],
         ];
         let svg = picture(&Mesh::new(positions.clone(), vec![[0, 1, 2], [1, 2, 3]])).unwrap();
         let marks: Vec<&str> = svg.split("<path class='i' d='").skip(1).collect();

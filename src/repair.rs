@@ -31,8 +31,8 @@ use crate::geometry::exact::segments_touch;
 use crate::geometry::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::{find, is_flat, union};
-use crate::topology::built::{cross2, table_of, welded_face, zero_area_bound, FaceKind};
-use crate::topology::intersect::{intersect, Search, Surface};
+use crate::topology::built::{table_of, welded_face, zero_area_bound, FaceKind};
+use crate::topology::intersect::{intersect_table, Search};
 use crate::topology::nesting::{depths, ShellGeometry};
 use crate::topology::Built;
 use crate::weld::{weld, INVALID};
@@ -245,26 +245,17 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
                 options.max_hole_edges
             ));
         }
-        if fill.blocked > 0 {
-            not_repairable.push(format!(
-                "{} hole{} left open: filling would overlap existing edges",
-                fill.blocked,
-                plural(fill.blocked)
-            ));
-        }
-        if fill.flat > 0 {
-            not_repairable.push(format!(
-                "{} hole{} left open: filling would close a flat open surface into a shell with no volume",
+        for (n, why) in [
+            (fill.blocked, "would overlap existing edges"),
+            (
                 fill.flat,
-                plural(fill.flat)
-            ));
-        }
-        if fill.crossing > 0 {
-            not_repairable.push(format!(
-                "{} hole{} left open: filling would cross the rest of the surface",
-                fill.crossing,
-                plural(fill.crossing)
-            ));
+                "would close a flat open surface into a shell with no volume",
+            ),
+            (fill.crossing, "would cross the rest of the surface"),
+        ] {
+            if n > 0 {
+                not_repairable.push(format!("{n} hole{} left open: filling {why}", plural(n)));
+            }
         }
         if fill.no_triangulation > 0 {
             not_repairable.push(format!(
@@ -834,19 +825,10 @@ impl<'a> Work<'a> {
         // shell crossing another is not turned for it).
         let meeting = if shells.len() > 1 {
             let bound = zero_area_bound(bounding_box(&self.points));
-            let triangles = table.triangles();
-            let points = &self.points;
-            let surface = Surface {
-                points,
-                table,
-                component: &|t| component[t as usize],
-                left_out: &|t| {
-                    let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-                    cross2(a, b, c) <= bound
-                },
-                number: None,
-            };
-            intersect(&surface, &Search::default()).component_pairs
+            let component_of = |t: u32| component[t as usize];
+            let search = Search::default();
+            intersect_table(&self.points, table, &component_of, bound, None, &search)
+                .component_pairs
         } else {
             Vec::new()
         };
@@ -1069,19 +1051,14 @@ impl<'a> Work<'a> {
         }
         let (all, number) = table_of(faces, number, self.points.len());
         let bound = zero_area_bound(bounding_box(&self.points));
-        let points = &self.points;
-        let triangles = all.triangles();
-        let surface = Surface {
-            points,
-            table: &all,
-            component: &|_| 0,
-            left_out: &|t| {
-                let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-                cross2(a, b, c) <= bound
-            },
-            number: Some(&number),
-        };
-        let met = intersect(&surface, &Search::default());
+        let met = intersect_table(
+            &self.points,
+            &all,
+            &|_| 0,
+            bound,
+            Some(&number),
+            &Search::default(),
+        );
         (0..filled.len())
             .filter(|&k| {
                 filled[k]

@@ -386,6 +386,17 @@ pub struct RepairDone {
     pub faces: Option<usize>,
 }
 
+impl Outcome {
+    /// The names of the rules with an error-severity finding, worst first.
+    pub fn error_rules(&self) -> Vec<&'static str> {
+        self.findings
+            .iter()
+            .filter(|f| f.severity == crate::rules::Severity::Error)
+            .map(|f| f.rule.name())
+            .collect()
+    }
+}
+
 /// The per-shell table and the drawing of one mesh, made while it is in memory.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Detail {
@@ -554,12 +565,7 @@ mod tests {
             faces: 4,
             area: 2.5,
             bbox: Some([[0.0, -0.5, 0.0], [1.0, 1e-7, 3.0]]),
-            components: vec![Component {
-                holes: 2,
-                orientable: true,
-                oriented: true,
-                ..Component::default()
-            }],
+            components: vec![Component::with_holes(2)],
             ..Analysis::default()
         };
         let findings = [Finding {

@@ -491,12 +491,7 @@ mod tests {
         let analysis = Analysis {
             degenerate_faces: 2,
             nonmanifold_edges: 1,
-            components: vec![Component {
-                holes: 1,
-                orientable: true,
-                oriented: true,
-                ..Component::default()
-            }],
+            components: vec![Component::with_holes(1)],
             ..Analysis::default()
         };
         let mut severities = Severities::default();

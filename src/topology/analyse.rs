@@ -17,7 +17,7 @@
 //! bounding boxes).
 
 use super::built::{build, cross2, zero_area_bound, Built};
-use super::intersect::{intersect, Surface};
+use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
@@ -142,18 +142,15 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
 
     // 5. Faces that meet: within a component, between components.
     a.intersections = options.intersections.map(|search| {
-        let triangles = table.triangles();
-        let surface = Surface {
+        let component_of = |t: u32| component[t as usize];
+        intersect_table(
             points,
             table,
-            component: &|t| component[t as usize],
-            left_out: &|t| {
-                let [p, q, r] = triangles[t as usize].map(|v| points[v as usize]);
-                cross2(p, q, r) <= zero_cross2
-            },
-            number: Some(&built.source),
-        };
-        intersect(&surface, &search)
+            &component_of,
+            zero_cross2,
+            Some(&built.source),
+            &search,
+        )
     });
     let meeting: &[[u32; 2]] = a
         .intersections
@@ -696,30 +693,20 @@ mod tests {
         )
     }
 
+    #[rustfmt::skip]
     const CUBE_POINTS: [[f64; 3]; 8] = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 1.0, 1.0],
-        [0.0, 1.0, 1.0],
+        [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
     ];
     /// Unit cube, counterclockwise seen from outside.
+    #[rustfmt::skip]
     const CUBE: [[u32; 3]; 12] = [
-        [0, 2, 1],
-        [0, 3, 2],
-        [4, 5, 6],
-        [4, 6, 7],
-        [0, 1, 5],
-        [0, 5, 4],
-        [1, 2, 6],
-        [1, 6, 5],
-        [2, 3, 7],
-        [2, 7, 6],
-        [3, 0, 4],
-        [3, 4, 7],
+        [0, 2, 1], [0, 3, 2], // z = 0
+        [4, 5, 6], [4, 6, 7], // z = 1
+        [0, 1, 5], [0, 5, 4], // y = 0
+        [1, 2, 6], [1, 6, 5], // x = 1
+        [2, 3, 7], [2, 7, 6], // y = 1
+        [3, 0, 4], [3, 4, 7], // x = 0
     ];
 
     /// Cube: V 8, E 18, F 12, chi 2, genus 0, one outward solid of volume 1.
@@ -741,11 +728,9 @@ mod tests {
     /// disk (chi 1, one hole, genus 0); vertex 0 has two fans.
     #[test]
     fn bowtie() {
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 0.0, 0.0],
             [-1.0, -1.0, 0.0],
         ];
         let a = run(&p, &[[0, 1, 2], [0, 3, 4]]);
@@ -786,11 +771,9 @@ mod tests {
     /// (each has three fans); one component that is not manifold, so no genus.
     #[test]
     fn three_faces_on_an_edge() {
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.5, 1.0, 0.0],
-            [0.5, -1.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, -1.0, 0.0],
             [0.5, 0.0, 1.0],
         ];
         let a = run(&p, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]]);

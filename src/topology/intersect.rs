@@ -121,18 +121,38 @@ pub fn intersections_built(
     bbox: Option<[[f64; 3]; 2]>,
     search: &Search,
 ) -> Intersections {
-    let bound = zero_area_bound(bbox);
-    let points = &built.welded.positions;
-    let triangles = built.table.triangles();
+    intersect_table(
+        &built.welded.positions,
+        &built.table,
+        &|t| built.component[t as usize],
+        zero_area_bound(bbox),
+        Some(&built.source),
+        search,
+    )
+}
+
+/// The faces of `table` (over `points`) that meet, leaving out its zero-area faces: those whose
+/// [`cross2`] is at most `zero_bound` ([`zero_area_bound`] of the mesh's box). `component` and
+/// `number` as in [`Surface`].
+pub(crate) fn intersect_table(
+    points: &[[f64; 3]],
+    table: &CornerTable,
+    component: &(dyn Fn(u32) -> u32 + Sync),
+    zero_bound: f64,
+    number: Option<&[u32]>,
+    search: &Search,
+) -> Intersections {
+    let triangles = table.triangles();
+    let left_out = |t: u32| {
+        let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+        cross2(a, b, c) <= zero_bound
+    };
     let surface = Surface {
         points,
-        table: &built.table,
-        component: &|t| built.component[t as usize],
-        left_out: &|t| {
-            let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-            cross2(a, b, c) <= bound
-        },
-        number: Some(&built.source),
+        table,
+        component,
+        left_out: &left_out,
+        number,
     };
     intersect(&surface, search)
 }

@@ -103,6 +103,20 @@ pub struct Component {
     pub genus: Option<i64>,
 }
 
+#[cfg(test)]
+impl Component {
+    /// An orientable, consistently wound component with `holes` boundary loops (for the tests of
+    /// what reads an analysis).
+    pub(crate) fn with_holes(holes: usize) -> Component {
+        Component {
+            holes,
+            orientable: true,
+            oriented: true,
+            ..Component::default()
+        }
+    }
+}
+
 /// Whether a shell bounds material from outside or a void inside material
 /// ([definitions](crate::definitions#volume-and-nesting)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -151,6 +151,28 @@ pub struct MeshData {
     pub unknown: u64,
 }
 
+impl MeshData {
+    /// Adds a triangle (and its properties, when kept), counting it against the file's limit.
+    fn push_triangle(
+        &mut self,
+        t: [u32; 3],
+        properties: [u32; 4],
+        totals: &mut Totals,
+        settings: &Settings,
+        part: &str,
+    ) -> Result<(), ReadError> {
+        totals.triangles += 1;
+        if totals.triangles > settings.limits.max_triangles {
+            return Err(over_limit(part, "triangles", settings.limits));
+        }
+        self.triangles.push(t);
+        if settings.keep {
+            self.properties.push(properties);
+        }
+        Ok(())
+    }
+}
+
 /// What an object is made of.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Content {
@@ -264,14 +286,7 @@ pub fn parse<R: BufRead>(
                         else {
                             return Ok(false);
                         };
-                        totals.triangles += 1;
-                        if totals.triangles > settings.limits.max_triangles {
-                            return Err(over_limit(&part, "triangles", settings.limits));
-                        }
-                        m.triangles.push(t);
-                        if settings.keep {
-                            m.properties.push(properties);
-                        }
+                        m.push_triangle(t, properties, totals, settings, &part)?;
                         Ok(true)
                     })?;
                 }
@@ -340,14 +355,7 @@ pub fn parse<R: BufRead>(
         if core && parent == Some(Node::Triangles) && local == b"triangle" {
             let m = mesh.as_mut().expect("triangles are inside a mesh");
             let (t, properties) = triangle(e, &xml, m.triangles.len(), settings.keep)?;
-            totals.triangles += 1;
-            if totals.triangles > settings.limits.max_triangles {
-                return Err(over_limit(&part, "triangles", settings.limits));
-            }
-            m.triangles.push(t);
-            if settings.keep {
-                m.properties.push(properties);
-            }
+            m.push_triangle(t, properties, totals, settings, &part)?;
             if start {
                 xml.skip(&mut buf)?;
             }
@@ -590,14 +598,7 @@ fn read_object<R: BufRead>(e: &BytesStart, xml: &Xml<R>) -> Result<Open, ReadErr
             return Ok(());
         }
         match local {
-            b"id" => {
-                id = Some(index(value).ok_or_else(|| {
-                    ReadError::new(format!(
-                        "part {part} has an object whose id `{}` is not a whole number: the file is damaged - re-export it",
-                        String::from_utf8_lossy(value)
-                    ))
-                })?)
-            }
+            b"id" => id = Some(whole(value, part, "an object", "id")?),
             b"name" => name = Some(String::from_utf8_lossy(value).into_owned()),
             b"type" => {
                 kind = Kind::ALL
@@ -614,11 +615,7 @@ fn read_object<R: BufRead>(e: &BytesStart, xml: &Xml<R>) -> Result<Open, ReadErr
         }
         Ok(())
     })?;
-    let id = id.ok_or_else(|| {
-        ReadError::new(format!(
-            "part {part} has an object without an id: the file is damaged - re-export it"
-        ))
-    })?;
+    let id = required(id, part, "an object", "id")?;
     Ok(Open {
         id,
         name,
@@ -640,14 +637,7 @@ fn reference<R: BufRead>(
     let mut sign = Sign::Positive;
     xml.each_attribute(e, |ns, local, value| {
         match (ns, local) {
-            (None, b"objectid") => {
-                object = Some(index(value).ok_or_else(|| {
-                    ReadError::new(format!(
-                        "part {part} has {what} whose objectid `{}` is not a whole number: the file is damaged - re-export it",
-                        String::from_utf8_lossy(value)
-                    ))
-                })?)
-            }
+            (None, b"objectid") => object = Some(whole(value, part, what, "objectid")?),
             (None, b"transform") => {
                 sign = transform_sign(value).map_err(|why| {
                     ReadError::new(format!(
@@ -666,12 +656,27 @@ fn reference<R: BufRead>(
         }
         Ok(())
     })?;
-    let object = object.ok_or_else(|| {
-        ReadError::new(format!(
-            "part {part} has {what} without an objectid: the file is damaged - re-export it"
-        ))
-    })?;
+    let object = required(object, part, what, "objectid")?;
     Ok(Reference { object, path, sign })
+}
+
+/// The index in attribute `name` of `what` (`an object`, `a build item`, ...), or why it is none.
+fn whole(value: &[u8], part: &str, what: &str, name: &str) -> Result<u32, ReadError> {
+    index(value).ok_or_else(|| {
+        ReadError::new(format!(
+            "part {part} has {what} whose {name} `{}` is not a whole number: the file is damaged - re-export it",
+            String::from_utf8_lossy(value)
+        ))
+    })
+}
+
+/// Attribute `name` of `what`, which 3MF requires.
+fn required<T>(value: Option<T>, part: &str, what: &str, name: &str) -> Result<T, ReadError> {
+    value.ok_or_else(|| {
+        ReadError::new(format!(
+            "part {part} has {what} without an {name}: the file is damaged - re-export it"
+        ))
+    })
 }
 
 /// The sign of the determinant of a transform's 3x3 part (`m00 m01 m02 m10 m11 m12 m20 m21 m22`,
@@ -875,16 +880,20 @@ fn extra_name(ns: Option<&[u8]>, local: &[u8]) -> String {
 mod tests {
     use super::*;
 
-    fn read(text: &str) -> Result<Model, ReadError> {
-        let limits = Limits::default();
-        let settings = Settings {
+    /// The settings of the root model part `/3D/3dmodel.model`, properties kept.
+    fn root_part(limits: &Limits) -> Settings<'_> {
+        Settings {
             key: "3d/3dmodel.model",
             name: "/3D/3dmodel.model",
             root: true,
             keep: true,
-            limits: &limits,
-        };
-        parse(text.as_bytes(), &settings, &mut Totals::default())
+            limits,
+        }
+    }
+
+    fn read(text: &str) -> Result<Model, ReadError> {
+        let limits = Limits::default();
+        parse(text.as_bytes(), &root_part(&limits), &mut Totals::default())
     }
 
     const HEAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
@@ -978,13 +987,7 @@ mod tests {
             format!("{HEAD}<resources><object id=\"1\"><mesh><vertices>{v}</vertices><triangles>{t}</triangles></mesh></object></resources><build><item objectid=\"1\"/></build></model>")
         };
         let limits = Limits::default();
-        let settings = Settings {
-            key: "3d/3dmodel.model",
-            name: "/3D/3dmodel.model",
-            root: true,
-            keep: true,
-            limits: &limits,
-        };
+        let settings = root_part(&limits);
         let parse_buffered = |text: &str| {
             let source = std::io::BufReader::with_capacity(1 << 16, text.as_bytes());
             parse(source, &settings, &mut Totals::default()).unwrap()

@@ -335,18 +335,8 @@ pub fn relationships<R: BufRead>(
     part: &str,
     source: &str,
 ) -> Result<Vec<Relationship>, ReadError> {
-    let part = part.to_owned();
-    let mut xml = Xml::new(bytes, &part);
-    let mut buf = Vec::new();
     let mut out = Vec::new();
-    loop {
-        let (step, event) = xml.next(&mut buf)?;
-        if step == Step::Eof {
-            break;
-        }
-        let (Event::Start(e) | Event::Empty(e)) = &event else {
-            continue;
-        };
+    each_element(bytes, part, |xml, e| {
         let ns = xml.namespace(e);
         let is_relationship =
             e.local_name().as_ref() == b"Relationship" && ns.is_none_or(|ns| ns == RELATIONSHIPS);
@@ -364,7 +354,7 @@ pub fn relationships<R: BufRead>(
             Ok(())
         })?;
         if !is_relationship {
-            continue;
+            return Ok(());
         }
         let target = target.ok_or_else(|| {
             ReadError::new(format!(
@@ -380,32 +370,43 @@ pub fn relationships<R: BufRead>(
             ReadError::new(format!("part {part} has a relationship whose target {why}"))
         })?;
         out.push(Relationship { kind, target });
-    }
+        Ok(())
+    })?;
     Ok(out)
+}
+
+/// Calls `visit` with every element (start or empty tag) of the XML part `part`, in order.
+fn each_element<R: BufRead>(
+    bytes: R,
+    part: &str,
+    mut visit: impl FnMut(&Xml<R>, &quick_xml::events::BytesStart) -> Result<(), ReadError>,
+) -> Result<(), ReadError> {
+    let part = part.to_owned();
+    let mut xml = Xml::new(bytes, &part);
+    let mut buf = Vec::new();
+    loop {
+        let (step, event) = xml.next(&mut buf)?;
+        if step == Step::Eof {
+            return Ok(());
+        }
+        if let Event::Start(e) | Event::Empty(e) = &event {
+            visit(&xml, e)?;
+        }
+    }
 }
 
 /// The parts a secure-content keystore lists as encrypted (its `resourcedata` paths, as keys).
 pub fn keystore<R: BufRead>(bytes: R, part: &str) -> Result<Vec<String>, ReadError> {
-    let part = part.to_owned();
-    let mut xml = Xml::new(bytes, &part);
-    let mut buf = Vec::new();
     let mut out = Vec::new();
-    loop {
-        let (step, event) = xml.next(&mut buf)?;
-        if step == Step::Eof {
-            break;
-        }
-        let (Event::Start(e) | Event::Empty(e)) = &event else {
-            continue;
-        };
+    each_element(bytes, part, |xml, e| {
         let data = e.local_name().as_ref() == b"resourcedata";
         xml.each_attribute(e, |ns, local, value| {
             if data && ns.is_none() && local == b"path" {
                 out.push(key(&String::from_utf8_lossy(value)));
             }
             Ok(())
-        })?;
-    }
+        })
+    })?;
     Ok(out)
 }
 
