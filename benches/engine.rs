@@ -1,6 +1,7 @@
 //! Topology engine benchmark (issue 2): a closed grid torus of ~1M and ~5M triangles with shuffled
 //! face order, single-threaded. Prints triangles/s for welding, the O-table build and the full
-//! analysis, and the peak heap the analysis allocates beyond the input mesh, per triangle; then the
+//! topology analysis (no search for faces that meet) and the full default analysis, with the peak
+//! heap each allocates beyond the input mesh, per triangle; then the
 //! stages of the analysis (the weld, the weld of the same mesh as a triangle soup, the build of the
 //! Corner Table from the mesh, and the walks after it), and for the shuffled 5M torus the analysis on
 //! a pool of two threads beside one (the same analysis, checked).
@@ -70,11 +71,21 @@ fn bench(label: &str, mesh: &Mesh) {
     });
     drop(table_input);
 
+    // The topology alone (weld, table, walks, shells, nesting), then the scan's default analysis,
+    // which adds the search for faces that meet (its own figures: `cargo bench --bench intersect`).
+    let topology = Options {
+        intersections: None,
+        ..Options::default()
+    };
     let options = Options::default();
-    let base = LIVE.load(Relaxed);
-    PEAK.store(base, Relaxed);
-    let (t_all, analysis) = best(3, || analyse(mesh, &options));
-    let extra = PEAK.load(Relaxed) - base;
+    let heap = |options: &Options| {
+        let base = LIVE.load(Relaxed);
+        PEAK.store(base, Relaxed);
+        let (t, analysis) = best(3, || analyse(mesh, options));
+        (t, analysis, PEAK.load(Relaxed) - base)
+    };
+    let (t_topo, analysis, extra_topo) = heap(&topology);
+    let (t_all, _, extra) = heap(&options);
 
     assert_eq!(analysis.genus(), Some(1), "a torus has genus 1");
     assert_eq!(analysis.border_edges, 0);
@@ -94,12 +105,17 @@ fn bench(label: &str, mesh: &Mesh) {
         mrate(t_table)
     );
     println!(
-        "  full analysis {:7.1} ms  {:6.1} M triangles/s",
-        t_all * 1e3,
-        mrate(t_all)
+        "  topology      {:7.1} ms  {:6.1} M triangles/s  (weld + table + walks + shells; \
+         peak heap beyond the input {:.1} bytes/triangle)",
+        t_topo * 1e3,
+        mrate(t_topo),
+        extra_topo as f64 / tris
     );
     println!(
-        "  peak heap beyond the input: {:.1} bytes/triangle",
+        "  full analysis {:7.1} ms  {:6.1} M triangles/s  (with faces that meet; \
+         peak heap beyond the input {:.1} bytes/triangle)",
+        t_all * 1e3,
+        mrate(t_all),
         extra as f64 / tris
     );
 
@@ -107,32 +123,31 @@ fn bench(label: &str, mesh: &Mesh) {
     let soup = shapes::soup(mesh);
     let (t_soup, _) = best(3, || weld(&soup.positions, 0.0));
     drop(soup);
-    let (t_build, _) = best(3, || build(mesh, &options));
+    let (t_build, _) = best(3, || build(mesh, &topology));
     println!(
         "  stages: weld as a soup {:.1} ms ({} positions); build (weld + faces + table) {:.1} ms; \
-         walks and shells (full - build) {:.1} ms",
+         walks and shells (topology - build) {:.1} ms",
         t_soup * 1e3,
         3 * mesh.triangles.len(),
         t_build * 1e3,
-        (t_all - t_build) * 1e3
+        (t_topo - t_build) * 1e3
     );
 }
 
 /// The analysis of one big mesh on one thread and on a pool of two: the weld, the sorts and the
 /// pairing of the table spread over the pool (same analysis, checked).
-fn bench_threads(label: &str, mesh: &Mesh) {
-    let options = Options::default();
-    let (one, a1) = best(3, || analyse(mesh, &options));
+fn bench_threads(label: &str, mesh: &Mesh, options: &Options) {
+    let (one, a1) = best(3, || analyse(mesh, options));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
         .expect("a pool of two threads");
-    let (two, a2) = best(3, || pool.install(|| analyse(mesh, &options)));
+    let (two, a2) = best(3, || pool.install(|| analyse(mesh, options)));
     assert_eq!(a1, a2, "two threads give the one-thread analysis");
-    let (b1, _) = best(3, || build(mesh, &options));
-    let (b2, _) = best(3, || pool.install(|| build(mesh, &options)));
+    let (b1, _) = best(3, || build(mesh, options));
+    let (b2, _) = best(3, || pool.install(|| build(mesh, options)));
     println!(
-        "{label}: full analysis 1 thread {:.1} ms, 2 threads {:.1} ms: {:.2}x \
+        "{label}: analysis 1 thread {:.1} ms, 2 threads {:.1} ms: {:.2}x \
          (build {:.1} -> {:.1} ms: {:.2}x)",
         one * 1e3,
         two * 1e3,
@@ -185,7 +200,16 @@ fn main() {
         let mesh = shapes::torus(n, m, Some(0x5eed));
         bench(&format!("torus {millions}M, shuffled faces"), &mesh);
         if millions == 5 {
-            bench_threads("torus 5M, shuffled faces", &mesh);
+            let topology = Options {
+                intersections: None,
+                ..Options::default()
+            };
+            bench_threads("torus 5M, shuffled faces, topology", &mesh, &topology);
+            bench_threads(
+                "torus 5M, shuffled faces, with faces that meet",
+                &mesh,
+                &Options::default(),
+            );
         }
         drop(mesh);
         let mesh = shapes::torus(n, m, None);

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use meshvet::formats::{self, Format, Limits, ReadContext};
-use meshvet::topology::{analyse_keeping, intersections_built, Intersections, Search};
+use meshvet::topology::{analyse, analyse_keeping, intersections_built, Intersections, Search};
 use meshvet::Mesh;
 
 #[path = "../tests/shapes/mod.rs"]
@@ -80,7 +80,11 @@ fn bench_test(label: &str, mesh: &Mesh, runs: usize) {
     if !wanted(label) {
         return;
     }
-    let (analysis, built) = analyse_keeping(mesh, &meshvet::Options::default());
+    let topology = meshvet::Options {
+        intersections: None,
+        ..meshvet::Options::default()
+    };
+    let (analysis, built) = analyse_keeping(mesh, &topology);
     let faces = built.table.triangle_count() as f64;
     for threads in [1, 2] {
         let (t, cpu, found) = pool(threads).install(|| {
@@ -123,8 +127,13 @@ fn write_stl(mesh: &Mesh, path: &Path) {
 /// Read, analyse and test one file, as a scan does for it.
 fn scan_one(path: &Path, cx: &ReadContext, search: &Search) -> Intersections {
     let meshes = formats::read(path, Format::Stl, cx).expect("read the STL");
-    let (analysis, built) = analyse_keeping(&meshes[0], &meshvet::Options::default());
-    intersections_built(&built, analysis.bbox, search)
+    let options = meshvet::Options {
+        intersections: Some(*search),
+        ..meshvet::Options::default()
+    };
+    analyse(&meshes[0], &options)
+        .intersections
+        .expect("the analysis searched")
 }
 
 /// A torus with one vertex pushed through the tube: vertex (0, 0), at (R + r, 0, 0) on the outer
@@ -170,7 +179,7 @@ fn whole_path_1m(dir: &Path, cx: &ReadContext) {
             pool(threads).install(|| times(3, || scan_one(&big, cx, &Search::default())));
         let (lo, hi) = range(&t);
         println!(
-            "whole path, 1M-face torus with a dent (read STL + analyse + test), {threads} thread(s): wall {:.0}-{:.0} ms, CPU {:.0} ms a run ({} pairs within)",
+            "whole path, 1M-face torus with a dent (read STL + analysis with the test, as a scan), {threads} thread(s): wall {:.0}-{:.0} ms, CPU {:.0} ms a run ({} pairs within)",
             lo * 1e3,
             hi * 1e3,
             cpu * 1e3,
@@ -187,11 +196,15 @@ fn whole_path_1m(dir: &Path, cx: &ReadContext) {
         hi * 1e3,
         cpu * 1e3
     );
-    let analysed = || analyse_keeping(&read()[0], &meshvet::Options::default()).0;
+    let topology = meshvet::Options {
+        intersections: None,
+        ..meshvet::Options::default()
+    };
+    let analysed = || analyse(&read()[0], &topology);
     let (t, cpu, _) = pool(1).install(|| times(3, analysed));
     let (lo, hi) = range(&t);
     println!(
-        "  of which read STL + analyse: wall {:.0}-{:.0} ms, CPU {:.0} ms a run",
+        "  of which read STL + topology (no search): wall {:.0}-{:.0} ms, CPU {:.0} ms a run",
         lo * 1e3,
         hi * 1e3,
         cpu * 1e3

@@ -79,13 +79,19 @@ fn temporary_name(path: &Path) -> PathBuf {
 mod tests {
     use super::*;
 
-    #[test]
-    fn committed_files_replace_the_old_one_and_leave_no_temporary() {
+    /// A folder holding `r.txt` = "old", and an atomic file over it with `text` written.
+    fn over_old(text: &[u8]) -> (tempfile::TempDir, PathBuf, AtomicFile) {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("r.txt");
         std::fs::write(&path, "old").unwrap();
         let mut file = AtomicFile::create(&path).unwrap();
-        file.write_all(b"new").unwrap();
+        file.write_all(text).unwrap();
+        (dir, path, file)
+    }
+
+    #[test]
+    fn committed_files_replace_the_old_one_and_leave_no_temporary() {
+        let (dir, path, file) = over_old(b"new");
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "old", "not yet");
         file.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
@@ -94,11 +100,7 @@ mod tests {
 
     #[test]
     fn dropped_files_leave_the_old_one() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("r.txt");
-        std::fs::write(&path, "old").unwrap();
-        let mut file = AtomicFile::create(&path).unwrap();
-        file.write_all(b"half").unwrap();
+        let (dir, path, file) = over_old(b"half");
         drop(file);
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -16,7 +16,7 @@ use std::path::Path;
 
 use crate::report::Outcome;
 use crate::report::{Row, COLUMNS};
-use crate::rules::{Severity, Status};
+use crate::rules::Status;
 
 /// One mesh whose result changed since the baseline.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -139,12 +139,7 @@ impl Baseline {
             after: now.name().to_owned(),
             what,
         };
-        let error_rules: Vec<&str> = outcome
-            .findings
-            .iter()
-            .filter(|f| f.severity == Severity::Error)
-            .map(|f| f.rule.name())
-            .collect();
+        let error_rules = outcome.error_rules();
         match now {
             Status::Error if was != Some(Status::Error) => {
                 self.worse

@@ -16,7 +16,7 @@ use toml::Spanned;
 
 use crate::formats::Limits;
 use crate::rules::{Rule, Severities, Severity};
-use crate::topology::Options;
+use crate::topology::{Options, Search};
 
 /// The documented default config: every key with its built-in default and what it does (a test
 /// holds it to [`Settings::default`]). `meshvet config --default` prints it.
@@ -42,6 +42,18 @@ pub struct Config {
     /// Worker threads; `0`: one per core.
     pub jobs: Option<usize>,
     pub repair: Option<RepairConfig>,
+    pub intersections: Option<IntersectionsConfig>,
+}
+
+/// The `[intersections]` table: the search for [faces that meet](crate::definitions#intersections).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntersectionsConfig {
+    /// Look for faces that meet at all (`false`: the counts are empty and the two rules silent).
+    pub check: Option<bool>,
+    /// How many pairs of faces that meet are kept per mesh for the QA page's picture (the counts
+    /// stay exact).
+    pub kept_pairs: Option<usize>,
 }
 
 /// The `[repair]` table: which [repairs](crate::definitions#repairs) `--repair-dir` runs.
@@ -80,6 +92,8 @@ pub struct Settings {
     pub repair: crate::repair::Options,
     /// Where repaired copies go (`--repair-dir`; not a config key). `None`: no repair.
     pub repair_dir: Option<PathBuf>,
+    /// The search for faces that meet; `None`: switched off.
+    pub intersections: Option<Search>,
 }
 
 impl Default for Settings {
@@ -93,6 +107,7 @@ impl Default for Settings {
             jobs: 0,
             repair: crate::repair::Options::default(),
             repair_dir: None,
+            intersections: Some(Search::default()),
         }
     }
 }
@@ -128,6 +143,17 @@ impl Settings {
         }
         if let Some(jobs) = layer.jobs {
             self.jobs = jobs;
+        }
+        if let Some(x) = &layer.intersections {
+            let kept = x
+                .kept_pairs
+                .or(self.intersections.map(|s| s.kept_pairs))
+                .unwrap_or(Search::default().kept_pairs);
+            let check = x.check.unwrap_or(self.intersections.is_some());
+            self.intersections = check.then_some(Search {
+                kept_pairs: kept,
+                ..Search::default()
+            });
         }
         if let Some(r) = &layer.repair {
             let o = &mut self.repair;
@@ -166,6 +192,7 @@ impl Settings {
     pub fn options(&self) -> Options {
         Options {
             weld_tolerance: self.weld_tolerance,
+            intersections: self.intersections,
         }
     }
 }
@@ -431,6 +458,21 @@ mod tests {
     fn bad_severity_is_an_error() {
         let err = parse("[rules]\nhole = \"fatal\"\n").unwrap_err();
         assert_eq!(err.position.map(|p| p.0), Some(2));
+    }
+
+    /// `[intersections] check = false` switches the search off; `kept_pairs` alone keeps it on.
+    #[test]
+    fn the_intersection_search_can_be_switched_off_or_capped() {
+        let off = Settings::default().merge(&parse("[intersections]\ncheck = false\n").unwrap());
+        assert_eq!(off.intersections, None);
+        assert_eq!(off.options().intersections, None);
+        let capped =
+            Settings::default().merge(&parse("[intersections]\nkept_pairs = 5\n").unwrap());
+        assert_eq!(capped.intersections.map(|s| s.kept_pairs), Some(5));
+        assert_eq!(
+            Settings::default().intersections.map(|s| s.kept_pairs),
+            Some(100)
+        );
     }
 
     /// A misspelt value names its key, the values it takes and the closest one; a value of the

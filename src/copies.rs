@@ -21,7 +21,7 @@ use crate::formats::{self, write, Format, ReadContext, Retained};
 use crate::judge::{judge, Judged};
 use crate::mesh::Mesh;
 use crate::repair::{Options, Plan};
-use crate::rules::{Finding, Status};
+use crate::rules::{Finding, Rule, Status};
 use crate::topology::Built;
 use crate::walk::STAGE_PREFIX;
 
@@ -81,19 +81,42 @@ pub fn repair_file(
     let options = settings.repair_options();
     let mut repaired = vec![Repaired::default(); meshes.len()];
     let mut plans: Vec<Option<Plan>> = Vec::with_capacity(meshes.len());
+    let meets = |f: &Finding| {
+        matches!(
+            f.rule,
+            Rule::SelfIntersection | Rule::IntersectingComponents
+        )
+    };
+    // Which sources have faces that meet (a copy's new ones are said below).
+    let met_before: Vec<bool> = judged
+        .iter()
+        .map(|j| j.findings.iter().any(meets))
+        .collect();
     for ((mesh, judged), done) in meshes.iter().zip(judged).zip(repaired.iter_mut()) {
         if judged.findings.is_empty() || mesh.triangles.is_empty() {
             plans.push(None);
             continue;
         }
         let built = judged.built.take();
+        // Faces that meet are reported, never moved: a repair cannot know which way is meant.
+        let meeting: Vec<String> = judged
+            .findings
+            .iter()
+            .filter(|f| meets(f))
+            .map(|f| f.rule.describe(f.count))
+            .collect();
         match caught(|| planner(mesh, &options, built)) {
             Ok(plan) => {
-                if !plan.not_repairable.is_empty() {
-                    done.notes.push(format!(
-                        "not repairable: {}",
-                        plan.not_repairable.join(", ")
+                let mut left = plan.not_repairable.clone();
+                if !meeting.is_empty() {
+                    left.push(format!(
+                        "{} (faces that meet are not repaired)",
+                        meeting.join(" and ")
                     ));
+                }
+                if !left.is_empty() {
+                    done.notes
+                        .push(format!("not repairable: {}", left.join(", ")));
                 }
                 // Only plans that change something are written; a mesh that needs nothing stays
                 // as it is.
@@ -129,10 +152,28 @@ pub fn repair_file(
     }) {
         Ok(Ok(checked)) => {
             let path = out.to_string_lossy().replace('\\', "/");
-            for ((plan, done), after) in plans.iter().zip(repaired.iter_mut()).zip(checked.after) {
+            for (i, ((plan, done), after)) in plans
+                .iter()
+                .zip(repaired.iter_mut())
+                .zip(checked.after)
+                .enumerate()
+            {
                 let (Some(plan), Some((status, findings))) = (plan, after) else {
                     continue;
                 };
+                // A split moves each fan's copy of a vertex a hair into its fan; where fans meet
+                // at a sharp angle the parts can be left touching or crossing by that hair.
+                let new: Vec<String> = findings
+                    .iter()
+                    .filter(|f| meets(f) && !met_before.get(i).copied().unwrap_or(true))
+                    .map(|f| f.rule.describe(f.count))
+                    .collect();
+                if !new.is_empty() {
+                    done.notes.push(format!(
+                        "not repairable: the split left {} (faces that meet are not repaired)",
+                        new.join(" and ")
+                    ));
+                }
                 done.copy = Some(Copy {
                     path: path.clone(),
                     repairs: plan.summary(),

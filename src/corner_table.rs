@@ -734,13 +734,9 @@ mod tests {
     /// missing a face, plus two fins on its edge 0-1 and a loose triangle).
     #[test]
     fn flipping_in_place_equals_rebuilding() {
+        #[rustfmt::skip]
         let triangles = [
-            [0, 2, 1],
-            [0, 1, 3],
-            [1, 2, 3],
-            [0, 1, 4],
-            [1, 0, 5],
-            [6, 7, 8],
+            [0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 1, 4], [1, 0, 5], [6, 7, 8],
         ];
         for mask in 0..1u32 << triangles.len() {
             let flip: Vec<bool> = (0..triangles.len()).map(|t| mask >> t & 1 == 1).collect();

@@ -8,8 +8,9 @@
 //! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cells spelt out),
 //! `repairs` an array of `{repair, count, faces}` (`faces`: the faces a `fill-holes` or
 //! `flip-inside-out-shells` added or turned, else `null`), and `shells` the per-shell table
-//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out, pinched}` (the CSV's
-//! count is its length, less the pinched solids). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
+//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out, pinched, meets}` (the
+//! CSV's count is its length, less the pinched solids; `meets`: the shells, by index in the table,
+//! whose faces meet this one's). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
 
 use std::io::{self, Write};
 
@@ -45,22 +46,17 @@ impl JsonReport {
 /// The JSON object of one mesh (see the module docs).
 pub fn record(outcome: &Outcome) -> Value {
     let mut object = outcome.row.json();
-    object.insert(
-        "findings".to_owned(),
-        outcome.findings.iter().map(finding).collect(),
-    );
-    object.insert(
-        "repairs".to_owned(),
-        outcome.repairs.iter().map(repair).collect(),
-    );
-    object.insert(
-        "findings_after".to_owned(),
-        outcome.findings_after.iter().map(finding).collect(),
-    );
-    object.insert(
-        "shells".to_owned(),
-        outcome.shells.iter().map(shell).collect(),
-    );
+    for (key, list) in [
+        ("findings", outcome.findings.iter().map(finding).collect()),
+        ("repairs", outcome.repairs.iter().map(repair).collect()),
+        (
+            "findings_after",
+            outcome.findings_after.iter().map(finding).collect(),
+        ),
+        ("shells", outcome.shells.iter().map(shell).collect()),
+    ] {
+        object.insert(key.to_owned(), Value::Array(list));
+    }
     Value::Object(object)
 }
 
@@ -87,6 +83,7 @@ fn shell(s: &ShellRow) -> Value {
         "role": role_name(s.role),
         "inside_out": s.inside_out,
         "pinched": s.pinched,
+        "meets": s.meets,
     })
 }
 
@@ -166,7 +163,7 @@ mod tests {
         assert_eq!(
             value["shells"],
             serde_json::json!([{"faces": 4, "holes": 0, "genus": 0, "volume": -0.5, "depth": 0,
-                "role": "solid", "inside_out": true, "pinched": false}])
+                "role": "solid", "inside_out": true, "pinched": false, "meets": []}])
         );
     }
 }

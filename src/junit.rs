@@ -78,13 +78,7 @@ pub fn case(outcome: &Outcome) -> TestCase {
             let errors = of(Severity::Error);
             let mut status = TestCaseStatus::non_success(NonSuccessKind::Failure);
             status.set_message(errors.join("; "));
-            let rules: Vec<&str> = outcome
-                .findings
-                .iter()
-                .filter(|f| f.severity == Severity::Error)
-                .map(|f| f.rule.name())
-                .collect();
-            status.set_type(rules.join(","));
+            status.set_type(outcome.error_rules().join(","));
             status.set_description(errors.join("\n"));
             status
         }

@@ -4,7 +4,8 @@
 //! problem places of [`Places`] drawn on top.
 //!
 //! Colours: faces seen from their front are blue-grey, faces seen from behind (through a hole, or
-//! flipped) plain grey, faces of inside-out shells violet; border edges orange; non-manifold edges
+//! flipped) plain grey, faces of inside-out shells violet, faces that meet another face (they cross
+//! or touch where the mesh does not join them) gold; border edges orange; non-manifold edges
 //! and vertices red; inconsistently wound edges (a face flipped against its neighbour) dashed teal.
 //! A shell that holds a deeper shell (by the analysis's nesting: a solid around its cavity, a
 //! housing around an inner part) is drawn translucent, so what is inside shows.
@@ -42,15 +43,17 @@ const GAP: f64 = 10.0;
 const MARGIN: f64 = 10.0;
 /// Shade levels per face colour.
 const LEVELS: usize = 8;
-/// Face colours (front, behind, inside-out) times shade levels: keys at or above this are the same
-/// colours drawn translucent.
-const OPAQUE_KEYS: u16 = 3 * LEVELS as u16;
+/// Face colours (front, behind, inside-out, meeting another face) times shade levels: keys at or
+/// above this are the same colours drawn translucent.
+const OPAQUE_KEYS: u16 = 4 * LEVELS as u16;
 /// The most parts tried as holders of another part (the ones with the biggest boxes).
 const MAX_HOLDERS: usize = 16;
 
 /// Per-face look flags: the face belongs to an inside-out shell; the face is drawn translucent.
 const INSIDE_OUT: u8 = 1;
 const SEE_THROUGH: u8 = 2;
+/// The face meets another (crosses or touches it where the mesh does not join them).
+const MEETS: u8 = 4;
 
 /// The style the drawing needs from the page that shows it: faces take their `color` as fill and
 /// stroke (stroked in their own colour so no seam shows between neighbours), class `g` for the
@@ -112,7 +115,10 @@ fn looks(places: &Places) -> Vec<u8> {
     (0..places.triangles.len())
         .map(|i| {
             let inside_out = places.inside_out.get(i).copied().unwrap_or(false);
-            u8::from(inside_out) * INSIDE_OUT + u8::from(see_through[i]) * SEE_THROUGH
+            let meets = places.meets.get(i).copied().unwrap_or(false);
+            u8::from(inside_out) * INSIDE_OUT
+                + u8::from(see_through[i]) * SEE_THROUGH
+                + u8::from(meets) * MEETS
         })
         .collect()
 }
@@ -239,7 +245,9 @@ fn draw_faces(
         let light = 0.3 + 0.7 * dot(&seen, &camera.light).max(0.0);
         let level = (light * (LEVELS - 1) as f64).round() as u16;
         let look = looks.get(i).copied().unwrap_or(0);
-        let kind = if look & INSIDE_OUT != 0 {
+        let kind = if look & MEETS != 0 {
+            3
+        } else if look & INSIDE_OUT != 0 {
             2
         } else if facing >= 0.0 {
             0
@@ -288,9 +296,14 @@ fn draw_faces(
     }
 }
 
-/// `#rgb` of a face colour: kind (front, back, inside-out) and shade level.
+/// `#rgb` of a face colour: kind (front, back, inside-out, meeting another face) and shade level.
 fn face_colour(colour: u16) -> String {
-    const BASE: [[f64; 3]; 3] = [[0.62, 0.74, 0.9], [0.66, 0.66, 0.62], [0.88, 0.5, 0.86]];
+    const BASE: [[f64; 3]; 4] = [
+        [0.62, 0.74, 0.9],
+        [0.66, 0.66, 0.62],
+        [0.88, 0.5, 0.86],
+        [0.95, 0.78, 0.1],
+    ];
     let base = BASE[colour as usize / LEVELS];
     let level = (colour as usize % LEVELS) as f64 / (LEVELS - 1) as f64;
     let brightness = 0.45 + 0.6 * level;
@@ -627,11 +640,9 @@ mod tests {
     /// second face runs 2 -> 1 and nothing is marked.
     #[test]
     fn inconsistent_edges_are_marked() {
+        #[rustfmt::skip]
         let positions = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [1.0, 1.0, 0.2],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.2],
         ];
         let svg = picture(&Mesh::new(positions.clone(), vec![[0, 1, 2], [1, 2, 3]])).unwrap();
         let marks: Vec<&str> = svg.split("<path class='i' d='").skip(1).collect();
@@ -696,6 +707,36 @@ mod tests {
         }
         let boxed = merged(&[open, cube(0.5, 1.0)]);
         assert!(!picture(&boxed).unwrap().contains("class='g'"));
+    }
+
+    /// The two overlapping unit cubes of `sample_assets/rules/intersecting-components.obj`: 12 of
+    /// their 24 faces meet a face of the other cube (the analysis says so), and exactly those are
+    /// drawn gold (kind 3), in both views; two cubes apart have no gold face.
+    #[test]
+    fn faces_that_meet_are_drawn_in_their_own_colour() {
+        let mesh = merged(&[cube(0.0, 1.0), cube(0.5, 1.0)]);
+        let (analysis, built) = analyse_keeping(&mesh, &Options::default());
+        assert_eq!(
+            analysis.intersections.as_ref().unwrap().involved_faces(),
+            12
+        );
+        let places = places(&built, &analysis);
+        assert_eq!(places.meets.iter().filter(|&&m| m).count(), 12);
+        let gold: Vec<String> = (0..LEVELS as u16)
+            .map(|l| face_colour(3 * LEVELS as u16 + l))
+            .collect();
+        let svg = draw(&places).unwrap();
+        let gold_faces = |svg: &str| {
+            svg.split("<path")
+                .filter(|e| gold.iter().any(|g| e.contains(&format!("color='{g}'"))))
+                .map(|e| e.matches('M').count())
+                .sum::<usize>()
+        };
+        // Both views draw every face they see edge-on or better: at most 12 each, at least some.
+        let n = gold_faces(&svg);
+        assert!(n > 0 && n <= 24, "{n} gold faces");
+        let apart = merged(&[cube(0.0, 1.0), cube(2.0, 1.0)]);
+        assert_eq!(gold_faces(&picture(&apart).unwrap()), 0);
     }
 
     /// A cube in the hole of a ring lies inside the ring's box but not inside the ring: the

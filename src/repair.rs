@@ -26,11 +26,13 @@ use robust::orient2d;
 use rustc_hash::FxHashMap;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
+use crate::geometry::bounding_box;
 use crate::geometry::exact::segments_touch;
 use crate::geometry::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::{find, is_flat, union};
-use crate::topology::built::{table_of, welded_face, FaceKind};
+use crate::topology::built::{table_of, welded_face, zero_area_bound, FaceKind};
+use crate::topology::intersect::{intersect_table, Search};
 use crate::topology::nesting::{depths, ShellGeometry};
 use crate::topology::Built;
 use crate::weld::{weld, INVALID};
@@ -243,19 +245,17 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
                 options.max_hole_edges
             ));
         }
-        if fill.blocked > 0 {
-            not_repairable.push(format!(
-                "{} hole{} left open: filling would overlap existing edges",
-                fill.blocked,
-                plural(fill.blocked)
-            ));
-        }
-        if fill.flat > 0 {
-            not_repairable.push(format!(
-                "{} hole{} left open: filling would close a flat open surface into a shell with no volume",
+        for (n, why) in [
+            (fill.blocked, "would overlap existing edges"),
+            (
                 fill.flat,
-                plural(fill.flat)
-            ));
+                "would close a flat open surface into a shell with no volume",
+            ),
+            (fill.crossing, "would cross the rest of the surface"),
+        ] {
+            if n > 0 {
+                not_repairable.push(format!("{n} hole{} left open: filling {why}", plural(n)));
+            }
         }
         if fill.no_triangulation > 0 {
             not_repairable.push(format!(
@@ -821,7 +821,22 @@ impl<'a> Work<'a> {
                 faces: &faces[c],
             })
             .collect();
-        let depth = depths(table, &self.points, &geometry);
+        // As in the analysis, shells whose faces meet have no depth against each other (so a
+        // shell crossing another is not turned for it).
+        let meeting = if shells.len() > 1 {
+            let bound = zero_area_bound(bounding_box(&self.points));
+            let component_of = |t: u32| component[t as usize];
+            let search = Search::default();
+            intersect_table(&self.points, table, &component_of, bound, None, &search)
+                .component_pairs
+        } else {
+            Vec::new()
+        };
+        let apart = |a: usize, b: usize| {
+            let (x, y) = (shells[a] as u32, shells[b] as u32);
+            meeting.binary_search(&[x.min(y), x.max(y)]).is_err()
+        };
+        let depth = depths(table, &self.points, &geometry, &apart);
         let mut flipped = (0, 0);
         let mut flip_faces = Vec::new();
         for (&comp, depth) in shells.iter().zip(depth) {
@@ -985,15 +1000,22 @@ impl<'a> Work<'a> {
             fill.faces += ring.len() - 2;
         }
         let flat = self.flat_closures(table, &border, &filled, &new_triangles);
-        if !flat.is_empty() {
-            let mut keep = vec![true; new_triangles.len()];
-            for &k in &flat {
-                let f = &filled[k];
-                keep[f.triangles.clone()].fill(false);
-                fill.holes -= 1;
-                fill.faces -= f.triangles.len();
-                fill.flat += 1;
-            }
+        let mut keep = vec![true; new_triangles.len()];
+        for &k in &flat {
+            let f = &filled[k];
+            keep[f.triangles.clone()].fill(false);
+            fill.holes -= 1;
+            fill.faces -= f.triangles.len();
+            fill.flat += 1;
+        }
+        for k in self.crossing_fills(table, &filled, &new_triangles, &keep) {
+            let f = &filled[k];
+            keep[f.triangles.clone()].fill(false);
+            fill.holes -= 1;
+            fill.faces -= f.triangles.len();
+            fill.crossing += 1;
+        }
+        if keep.contains(&false) {
             let mut i = 0;
             new_triangles.retain(|_| {
                 i += 1;
@@ -1003,6 +1025,48 @@ impl<'a> Work<'a> {
         drop(shared);
         self.add_triangles(new_triangles);
         fill
+    }
+
+    /// The fills (indices into `filled`) not yet dropped (`keep`) whose faces meet the surface or
+    /// another fill: a fill that crosses the rest of the mesh makes a new defect, not a repair.
+    fn crossing_fills(
+        &self,
+        table: &CornerTable,
+        filled: &[Filled],
+        new_triangles: &[Triangle],
+        keep: &[bool],
+    ) -> Vec<usize> {
+        if !keep.contains(&true) {
+            return Vec::new();
+        }
+        // The table's faces, numbered as they are, then the kept fills, numbered after them.
+        let nt = table.triangle_count() as u32;
+        let mut faces = table.triangles().to_vec();
+        let mut number: Vec<u32> = (0..nt).collect();
+        for (i, t) in new_triangles.iter().enumerate() {
+            if keep[i] {
+                faces.push(self.welded_of(t));
+                number.push(nt + i as u32);
+            }
+        }
+        let (all, number) = table_of(faces, number, self.points.len());
+        let bound = zero_area_bound(bounding_box(&self.points));
+        let met = intersect_table(
+            &self.points,
+            &all,
+            &|_| 0,
+            bound,
+            Some(&number),
+            &Search::default(),
+        );
+        (0..filled.len())
+            .filter(|&k| {
+                filled[k]
+                    .triangles
+                    .clone()
+                    .any(|i| keep[i] && met.involves(nt + i as u32))
+            })
+            .collect()
     }
 
     /// Whether every vertex of the faces reachable from the hole's border face through manifold
@@ -1208,6 +1272,8 @@ struct Fill {
     no_triangulation: usize,
     /// Loops whose fill would close a flat open surface into a shell with no volume.
     flat: usize,
+    /// Loops whose fill would cross the rest of the surface (or another fill).
+    crossing: usize,
 }
 
 /// Six times the signed volume of a set of triangles (about an origin) and their bounding box.

@@ -118,6 +118,10 @@ columns! {
     status_after: String,
     /// The repaired copy's findings, `rule:count;...` like `findings` (empty: none, or no copy).
     findings_after: String,
+    /// Pairs of faces of one component that meet (empty: the search is switched off).
+    self_intersections: Option<usize>,
+    /// Pairs of components with faces that meet (empty: the search is switched off).
+    intersecting_components: Option<usize>,
 }
 
 /// How a column's type is written in a CSV cell, read back from one and typed in JSON. Undefined
@@ -226,6 +230,8 @@ pub struct ShellRow {
     pub inside_out: bool,
     /// A pinched solid, not a shell ([`Shell::pinched`]).
     pub pinched: bool,
+    /// The other shells of the table (their indices in it) whose faces meet this one's.
+    pub meets: Vec<usize>,
 }
 
 impl ShellRow {
@@ -246,6 +252,7 @@ impl ShellRow {
                 role: shell.role,
                 inside_out: shell.inside_out,
                 pinched: shell.pinched,
+                meets: shell.meets.clone(),
             })
             .collect()
     }
@@ -330,6 +337,8 @@ impl Row {
             findings: findings_cell(findings),
             status_after: String::new(),
             findings_after: String::new(),
+            self_intersections: a.self_intersections(),
+            intersecting_components: a.intersecting_components(),
         }
     }
 }
@@ -375,6 +384,17 @@ pub struct RepairDone {
     pub repair: &'static str,
     pub count: usize,
     pub faces: Option<usize>,
+}
+
+impl Outcome {
+    /// The names of the rules with an error-severity finding, worst first.
+    pub fn error_rules(&self) -> Vec<&'static str> {
+        self.findings
+            .iter()
+            .filter(|f| f.severity == crate::rules::Severity::Error)
+            .map(|f| f.rule.name())
+            .collect()
+    }
 }
 
 /// The per-shell table and the drawing of one mesh, made while it is in memory.
@@ -545,12 +565,7 @@ mod tests {
             faces: 4,
             area: 2.5,
             bbox: Some([[0.0, -0.5, 0.0], [1.0, 1e-7, 3.0]]),
-            components: vec![Component {
-                holes: 2,
-                orientable: true,
-                oriented: true,
-                ..Component::default()
-            }],
+            components: vec![Component::with_holes(2)],
             ..Analysis::default()
         };
         let findings = [Finding {
@@ -578,11 +593,11 @@ mod tests {
         assert_eq!(lines[0], COLUMNS.join(","));
         assert_eq!(
             lines[1],
-            "a/b.obj,,obj,warn,2 holes; missing b.mtl,4,0,4,0,0,0,0,0,0,0,0,0,0,1,0,2,true,true,0,0,0,0,,,2.5,0,-0.5,0,1,0.0000001,3,,,1.5,0,0,hole:2,,"
+            "a/b.obj,,obj,warn,2 holes; missing b.mtl,4,0,4,0,0,0,0,0,0,0,0,0,0,1,0,2,true,true,0,0,0,0,,,2.5,0,-0.5,0,1,0.0000001,3,,,1.5,0,0,hole:2,,,,"
         );
         assert_eq!(
             lines[2],
-            format!("c.stl,,stl,error,truncated{}0.25,,,,,", ",".repeat(34))
+            format!("c.stl,,stl,error,truncated{}0.25,,,,,,,", ",".repeat(34))
         );
     }
 

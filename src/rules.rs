@@ -64,10 +64,12 @@ pub enum Rule {
     InsideOutShell,
     Cavity,
     MirroredInstance,
+    SelfIntersection,
+    IntersectingComponents,
 }
 
 impl Rule {
-    pub const ALL: [Rule; 13] = [
+    pub const ALL: [Rule; 15] = [
         Rule::InvalidVertex,
         Rule::DegenerateFace,
         Rule::ZeroAreaFace,
@@ -81,6 +83,8 @@ impl Rule {
         Rule::InsideOutShell,
         Rule::Cavity,
         Rule::MirroredInstance,
+        Rule::SelfIntersection,
+        Rule::IntersectingComponents,
     ];
 
     /// Everything meshvet says about the rule.
@@ -203,6 +207,24 @@ impl Rule {
                 one: "mirrored instance",
                 many: "mirrored instances",
             },
+            Rule::SelfIntersection => &Doc {
+                name: "self-intersection",
+                summary: "two faces of one connected part cross or touch where they share no edge or vertex",
+                meaning: "A surface that passes through itself has no well-defined inside: slicers print or skip the overlap unpredictably, booleans and remeshing fail, and a volume or mass estimate is wrong.",
+                repair: "Not repaired automatically: move or remesh the crossing faces in a modelling tool (or run a remesher).",
+                default: Severity::Warning,
+                one: "pair of faces that meet within a part",
+                many: "pairs of faces that meet within a part",
+            },
+            Rule::IntersectingComponents => &Doc {
+                name: "intersecting-components",
+                summary: "two separate parts of the mesh cross or touch each other",
+                meaning: "Separate parts that overlap (a button sunk into a body, two boxes pushed together) print as one only if the slicer unions them; their volume counts the overlap twice, and nesting cannot say whether one is inside the other.",
+                repair: "Not repaired automatically: union the parts (a boolean) or move them apart; harmless for many game assets.",
+                default: Severity::Warning,
+                one: "pair of parts that meet",
+                many: "pairs of parts that meet",
+            },
         }
     }
 
@@ -252,6 +274,8 @@ impl Rule {
             Rule::InsideOutShell => a.inside_out_shells(),
             Rule::Cavity => a.cavities(),
             Rule::MirroredInstance => mesh.mirrored_instances as usize,
+            Rule::SelfIntersection => a.self_intersections().unwrap_or(0),
+            Rule::IntersectingComponents => a.intersecting_components().unwrap_or(0),
         }
     }
 
@@ -343,7 +367,15 @@ pub fn check(analysis: &Analysis, mesh: &MeshFacts, severities: &Severities) -> 
                 rule,
                 severity: severities.get(rule),
                 count,
-                message: rule.describe(count),
+                message: match (rule, &analysis.intersections) {
+                    // How much of the surface is involved, beside the number of pairs.
+                    (Rule::SelfIntersection | Rule::IntersectingComponents, Some(i)) => format!(
+                        "{} ({} faces meet others)",
+                        rule.describe(count),
+                        i.involved_faces()
+                    ),
+                    _ => rule.describe(count),
+                },
             })
         })
         .collect();
@@ -459,12 +491,7 @@ mod tests {
         let analysis = Analysis {
             degenerate_faces: 2,
             nonmanifold_edges: 1,
-            components: vec![Component {
-                holes: 1,
-                orientable: true,
-                oriented: true,
-                ..Component::default()
-            }],
+            components: vec![Component::with_holes(1)],
             ..Analysis::default()
         };
         let mut severities = Severities::default();

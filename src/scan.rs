@@ -283,6 +283,13 @@ pub fn outcome(
         notes.push("no triangles".to_owned());
     }
     notes.extend(mesh.notes.iter().cloned());
+    let overlapping = judged.analysis.overlapping_shells();
+    if overlapping > 0 {
+        notes.push(format!(
+            "volume counts the space where shells overlap twice ({overlapping} pair{} of shells meet)",
+            if overlapping == 1 { "" } else { "s" }
+        ));
+    }
     notes.extend(repaired.notes.iter().cloned());
     let mut row = Row::analysed(
         display,

@@ -655,11 +655,9 @@ mod tests {
     /// Points 0.4 apart across a cell boundary weld with tolerance 0.5; a point 0.6 away does not.
     #[test]
     fn tolerance_weld_crosses_cell_boundaries() {
+        #[rustfmt::skip]
         let pts = [
-            [0.3, 0.0, 0.0],
-            [0.7, 0.0, 0.0],
-            [1.3, 0.0, 0.0],
-            [0.3, 0.0, 0.0],
+            [0.3, 0.0, 0.0], [0.7, 0.0, 0.0], [1.3, 0.0, 0.0], [0.3, 0.0, 0.0],
         ];
         let w = weld(&pts, 0.5);
         assert_eq!(w.map, vec![0, 0, 1, 0]);

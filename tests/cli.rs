@@ -12,7 +12,9 @@ degenerate_faces,zero_area_faces,duplicate_faces,invalid_vertices,unreferenced_v
 border_edges,nonmanifold_edges,nonmanifold_vertices,inconsistent_edges,components,shells,holes,\
 orientable,oriented,inside_out_shells,cavities,solids,euler,genus,volume,area,bbox_min_x,\
 bbox_min_y,bbox_min_z,bbox_max_x,bbox_max_y,bbox_max_z,repaired_path,repairs,millis";
-const EXTRA_COLUMNS: &str = "invalid_faces,mirrored_instances,findings,status_after,findings_after";
+const EXTRA_COLUMNS: &str =
+    "invalid_faces,mirrored_instances,findings,status_after,findings_after,\
+self_intersections,intersecting_components";
 
 /// A closed tetrahedron wound outward: passes every rule.
 const TETRA: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
@@ -1015,4 +1017,40 @@ fn config_mistakes_say_how_to_fix_them() {
         "{}",
         which.stdout
     );
+}
+
+/// The two overlapping cubes of the rule fixture: 0 pairs within a part, 1 pair of parts, and the
+/// message says the volume counts their overlap twice; with `[intersections] check = false` both
+/// cells are empty and the rule is silent.
+#[test]
+fn faces_that_meet_have_columns_and_can_be_switched_off() {
+    let fixture = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("sample_assets/rules/intersecting-components.obj"),
+    )
+    .unwrap();
+    let tree = Tree::new(&[]);
+    tree.write("boxes.obj", &fixture);
+    let header: Vec<&str> = SPEC_COLUMNS
+        .split(',')
+        .chain(EXTRA_COLUMNS.split(','))
+        .collect();
+    let cell = |csv: &str, name: &str| {
+        let i = header.iter().position(|c| *c == name).unwrap();
+        rows(csv)[0][i].clone()
+    };
+    let on = meshvet(tree.path(), &["scan", "--csv", "-"]);
+    assert_eq!(cell(&on.stdout, "self_intersections"), "0");
+    assert_eq!(cell(&on.stdout, "intersecting_components"), "1");
+    assert_eq!(cell(&on.stdout, "findings"), "intersecting-components:1");
+    assert!(
+        cell(&on.stdout, "message").contains("volume counts the space where shells overlap twice"),
+        "{}",
+        on.stdout
+    );
+    tree.write("meshvet.toml", b"[intersections]\ncheck = false\n");
+    let off = meshvet(tree.path(), &["scan", "--csv", "-"]);
+    assert_eq!(cell(&off.stdout, "self_intersections"), "");
+    assert_eq!(cell(&off.stdout, "intersecting_components"), "");
+    assert_eq!(cell(&off.stdout, "findings"), "");
 }

@@ -144,7 +144,7 @@ fn obj_hostile() {
         .collect();
     let _ = load("g.obj", &garbage); // error or notes, never a panic
     let png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR";
-    assert!(err("p.obj", png).contains("binary data"));
+    assert!(err("p.obj", png).contains("looks like a PNG image"));
     let m = ok("pl.obj", b"v 0 0 0\nv 1 0 0\np 1 2\nl 1 2\n");
     assert!(
         m.triangles.is_empty() && m.notes.len() == 2,
@@ -269,6 +269,162 @@ fn off_happy_and_hostile() {
     assert!(ok("n.off", b"OFF\n3 1 0\nnan 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").positions[0][0].is_nan());
     assert!(err("t.off", b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n").contains("truncated"));
     assert!(err("png.off", b"\x89PNG\r\n\x1a\n\0\0").contains("not an OFF"));
+}
+
+/// `n` bytes of compressed-looking data without a zero byte (zeros turned into ones): about one in
+/// nine is a control character, about half are not UTF-8.
+fn noise(n: usize) -> Vec<u8> {
+    let mut x = 0x2545_F491_4F6C_DD1Du64;
+    (0..n)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 24) as u8
+        })
+        .map(|b| b.max(1))
+        .collect()
+}
+
+/// A PNG renamed to each text format (its signature, then bytes with no zero among them): an
+/// error naming the PNG, never an `empty` row; the same for other signatures, and binary data
+/// of no known format is binary data (by its control characters).
+#[test]
+fn binary_content_named_as_a_text_format_is_an_error_that_says_what_it_looks_like() {
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(noise(3000));
+    for (name, what) in [
+        ("a.obj", "an OBJ"),
+        ("a.off", "an OFF"),
+        ("a.ply", "a PLY"),
+        ("a.stl", "an STL"),
+    ] {
+        let e = err(name, &png);
+        assert!(
+            e.contains(&format!("this looks like a PNG image, not {what} file")),
+            "{name}: {e}"
+        );
+    }
+    let mut zip = b"PK\x03\x04".to_vec();
+    zip.extend(noise(500));
+    assert!(err("z.obj", &zip).contains("looks like a ZIP archive"));
+    let mut pdf = b"%PDF-1.7\n".to_vec();
+    pdf.extend(noise(500));
+    assert!(err("d.stl", &pdf).contains("looks like a PDF document, not an STL file"));
+    assert!(err("g.off", b"glTF\x02\x00\x00\x00").contains("binary glTF"));
+    let e = err("n.obj", &noise(3000));
+    assert!(
+        e.contains("not a text OBJ file: binary data (control characters"),
+        "{e}"
+    );
+    let e = err("n.off", &noise(3000));
+    assert!(e.contains("not a text OFF file: binary data"), "{e}");
+    assert!(err("u.off", b"\xff\xfeO\0F\0F\0").contains("UTF-16"));
+}
+
+/// What is still text: Latin-1 names (a note), and an OBJ after a short binary preamble (a web
+/// archive holding the text: 20 control characters in its first 8 KiB, zeros only after them),
+/// whose 200 squares are read as 400 triangles.
+#[test]
+fn latin1_names_and_a_short_binary_preamble_stay_text() {
+    let m = ok(
+        "l.obj",
+        b"# export\xe9 par Mod\xe8le\no caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    assert_eq!(m.triangles.len(), 1);
+    assert!(m.notes.iter().any(|n| n.contains("not valid UTF-8")));
+    let mut archive =
+        b"bplist00\xd1\x01\x02_\x10\x0fWebMainResource\xd5\x03\x04\x05\x06\x07\x08\x09\
+        \x0a\x0b\x0c_\x10\x0fWebResource\x0e\x11\x12\x13\x14\x15<html><pre>\n"
+            .to_vec();
+    let square = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+    archive.extend(square.repeat(200).as_bytes());
+    archive.extend(b"</pre></html>\x00\x00\x01");
+    let m = ok("w.obj", &archive);
+    assert_eq!(m.triangles.len(), 400);
+}
+
+/// Awkward coordinates read by every text reader to the very `f64` the standard parser gives
+/// (a NaN for a NaN): 17+ significant digits, ties, subnormals, just past the largest double,
+/// overflow and underflow, signed zeros, `.5`, `5.`, `+3` and the infinity and NaN spellings.
+#[test]
+fn awkward_numbers_read_as_the_standard_parser_reads_them() {
+    // Nine vertices: three STL facets.
+    const NUMBERS: [&str; 27] = [
+        "0.1",
+        "-0",
+        "+3",
+        ".5",
+        "5.",
+        "-.5e-3",
+        "1e400",
+        "-1e400",
+        "1e-400",
+        "4.9e-324",
+        "2.2250738585072011e-308",
+        "1.7976931348623158e308",
+        "1.7976931348623159e308",
+        "3.14159265358979323846264338327950288",
+        "9007199254740993",
+        "0.30000000000000004",
+        "123456789012345678901234567890e-20",
+        "inf",
+        "-Infinity",
+        "+INF",
+        "nan",
+        "-NaN",
+        "NAN",
+        "1E+2",
+        "-0.0",
+        "1e-5",
+        "000.000001",
+    ];
+    let triples: Vec<[&str; 3]> = NUMBERS.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let n = triples.len();
+    let mut obj = String::new();
+    let mut off = format!("OFF\n{n} 1 0\n");
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {n}\nproperty double x\nproperty double y\n\
+         property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    );
+    let mut stl = String::from("solid s\n");
+    for (k, [x, y, z]) in triples.iter().enumerate() {
+        obj.push_str(&format!("v {x} {y}\t{z}\n"));
+        off.push_str(&format!("{x} {y} {z} # comment\n"));
+        ply.push_str(&format!("{x} {y} {z}\n"));
+        if k % 3 == 0 {
+            stl.push_str("facet normal 0 0 0\nouter loop\n");
+        }
+        stl.push_str(&format!("vertex {x} {y} {z}\n"));
+        if k % 3 == 2 {
+            stl.push_str("endloop\nendfacet\n");
+        }
+    }
+    obj.push_str("f 1 2 3\n");
+    off.push_str("3 0 1 2\n");
+    ply.push_str("3 0 1 2\n");
+    stl.push_str("endsolid s\n");
+    let expected: Vec<[f64; 3]> = triples
+        .iter()
+        .map(|t| t.map(|x| x.parse::<f64>().unwrap()))
+        .collect();
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    for (name, text) in [
+        ("a.obj", obj),
+        ("a.off", off),
+        ("a.ply", ply),
+        ("a.stl", stl),
+    ] {
+        let m = ok(name, text.as_bytes());
+        assert!(m.notes.is_empty(), "{name}: {:?}", m.notes);
+        assert_eq!(m.positions.len(), n, "{name}");
+        for (got, want) in m.positions.iter().zip(&expected) {
+            assert!(
+                (0..3).all(|k| same(got[k], want[k])),
+                "{name}: {got:?} vs {want:?}"
+            );
+        }
+    }
 }
 
 /// Every mesh file of the shared corpus loads without a panic, and where the reference libraries

@@ -1,4 +1,4 @@
-//! Faces that meet, through `meshvet::topology::intersections`: the hand-derived constructions of
+//! Faces that meet, as the analysis finds them (`Analysis::intersections`): the hand-derived constructions of
 //! the issue, invariance under exact motions and renumbering, and agreement with CGAL's exact
 //! `self_intersections` on the shared corpus.
 
@@ -6,15 +6,27 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use meshvet::formats::{self, Format, Limits, ReadContext};
-use meshvet::topology::{intersections, Intersections, Search};
+use meshvet::topology::{Intersections, Search};
 use meshvet::{analyse, Mesh, Options, Role};
 
 #[path = "shapes/mod.rs"]
 #[allow(dead_code)]
 mod shapes;
 
+/// The faces of `mesh` that meet, found by its analysis with `search` (faces numbered as in the
+/// mesh, components as in the analysis).
+fn intersections(mesh: &Mesh, search: &Search) -> Intersections {
+    let options = Options {
+        intersections: Some(*search),
+        ..Options::default()
+    };
+    analyse(mesh, &options)
+        .intersections
+        .expect("the options ask for the search")
+}
+
 fn meet(mesh: &Mesh) -> Intersections {
-    intersections(mesh, &Options::default(), &Search::default())
+    intersections(mesh, &Search::default())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -26,7 +38,7 @@ fn all_pairs(mesh: &Mesh) -> Intersections {
         kept_pairs: usize::MAX,
         first_only: false,
     };
-    intersections(mesh, &Options::default(), &search)
+    intersections(mesh, &search)
 }
 
 /// A fan of three faces around the origin v: f0 = v (4,0,0) (0,4,0) in z = 0, f1 = v (0,4,0)
@@ -194,7 +206,6 @@ fn soup_cap_and_first_pair() {
     assert_eq!(every.involved_faces(), 24);
     let capped = intersections(
         &twins,
-        &Options::default(),
         &Search {
             kept_pairs: 3,
             first_only: false,
@@ -206,7 +217,6 @@ fn soup_cap_and_first_pair() {
     assert!(!capped.stopped);
     let first = intersections(
         &twins,
-        &Options::default(),
         &Search {
             kept_pairs: 10,
             first_only: true,

@@ -604,3 +604,42 @@ fn prism(base: &[[f64; 2]], z0: f64, z1: f64) -> Mesh {
     }
     Mesh::new(positions, triangles)
 }
+
+/// A unit box without its top (the square z = 1 is a hole of 4 edges) and, beside it, a lone
+/// triangle `(0.5,0.5,0.5) (0.6,0.5,1.5) (0.5,0.6,1.5)` that rises through the opening: it crosses
+/// z = 1 along the segment (0.55,0.5,1)-(0.5,0.55,1), inside the square. Filling the top would
+/// make two faces that meet that triangle, so the hole is left open and said; the triangle's own
+/// outline cannot be filled (it would repeat the triangle). Nothing else is wrong: no repair.
+#[test]
+fn a_fill_that_would_cross_the_surface_is_left_open() {
+    let mut open = shapes::cube();
+    open.triangles.retain(|t| !t.iter().all(|&v| v & 4 != 0)); // the two faces at z = 1
+    let spike = Mesh::new(
+        vec![[0.5, 0.5, 0.5], [0.6, 0.5, 1.5], [0.5, 0.6, 1.5]],
+        vec![[0, 1, 2]],
+    );
+    let mesh = shapes::merge(&[open, spike]);
+    let before = analyse(&mesh, &Default::default());
+    assert_eq!(
+        (before.holes(), before.intersecting_components()),
+        (2, Some(0))
+    );
+    let p = plan(&mesh, &Options::default());
+    assert_eq!(
+        p.not_repairable,
+        vec![
+            "1 hole left open: filling would overlap existing edges",
+            "1 hole left open: filling would cross the rest of the surface"
+        ]
+    );
+    assert!(!p.changes(), "{:?}", p.done);
+    // The same box without the spike is filled (2 faces): only the crossing kept it open.
+    let mut alone = shapes::cube();
+    alone.triangles.retain(|t| !t.iter().all(|&v| v & 4 != 0));
+    let (p, _, after) = repaired(&alone);
+    assert_eq!(count(&p, Kind::FillHoles), 1);
+    assert_eq!(
+        (after.holes(), after.intersecting_components()),
+        (0, Some(0))
+    );
+}

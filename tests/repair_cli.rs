@@ -120,7 +120,7 @@ const REPAIRED_RULE: [(&str, &str); 9] = [
 
 /// Rules a repair is meant to remove; one left in a copy must be said not repairable, in these
 /// words of the message.
-const REPAIRABLE: [(&str, &str); 9] = [
+const REPAIRABLE: [(&str, &str); 11] = [
     ("invalid-vertex", ""),
     ("degenerate-face", ""),
     ("duplicate-face", ""),
@@ -130,6 +130,12 @@ const REPAIRABLE: [(&str, &str); 9] = [
     ("inconsistent-winding", "non-orientable"),
     ("inside-out-shell", ""),
     ("hole", "hole"),
+    // Never repaired, and said so.
+    ("self-intersection", "faces that meet are not repaired"),
+    (
+        "intersecting-components",
+        "faces that meet are not repaired",
+    ),
 ];
 
 /// (b) for every repaired row: the re-scan of its copy (`again`, by path and mesh) finds what the
@@ -148,6 +154,14 @@ fn check_rescan(repaired: &[&Row], again: &BTreeMap<(String, String), Row>) {
             // Cutting faces loose opens borders, and a component freed of its non-manifold
             // edges can turn out to be a Moebius band: new, and said below.
             was.extend(["hole".to_owned(), "non-orientable".to_owned()]);
+            // A part cut in two turns its faces that meet into two parts that meet; and a split
+            // moves each fan's copy of the vertex a hair into its fan, which where fans meet at
+            // a sharp angle can leave them touching or crossing by that hair (the README says
+            // so: scallopFacets.glb, whose 27 facets touch at 26 vertices, gets 16 such pairs).
+            was.insert("intersecting-components".to_owned());
+            if was.contains("self-intersection") || was.contains("intersecting-components") {
+                was.insert("self-intersection".to_owned());
+            }
         }
         assert!(
             left.is_subset(&was),
@@ -155,9 +169,9 @@ fn check_rescan(repaired: &[&Row], again: &BTreeMap<(String, String), Row>) {
         );
         let not_repairable = r["message"]
             .split("not repairable: ")
-            .nth(1)
-            .unwrap_or("")
-            .to_owned();
+            .skip(1)
+            .collect::<Vec<_>>()
+            .join(" ");
         for (rule, said) in REPAIRABLE {
             if left.contains(rule) {
                 assert!(
@@ -752,7 +766,16 @@ fn corpus_textured_gltf_with_a_hole_cut_is_repaired() {
         let rows = csv_rows(&dir.path().join("r.csv"));
         let r = rows.values().next().unwrap();
         assert!(r["repairs"].contains("fill-holes:"), "{sample}: {r:?}");
-        assert_eq!(r["status_after"], "pass", "{sample}: {r:?}");
+        // Faces that meet are not repaired (the Duck has 4 pairs): they stay, and nothing else.
+        let meeting: Vec<&str> = r["findings"]
+            .split(';')
+            .filter(|f| {
+                f.starts_with("self-intersection:") || f.starts_with("intersecting-components:")
+            })
+            .collect();
+        assert_eq!(r["findings_after"], meeting.join(";"), "{sample}: {r:?}");
+        let expected = if meeting.is_empty() { "pass" } else { "warn" };
+        assert_eq!(r["status_after"], expected, "{sample}: {r:?}");
         let copy = dir.path().join("out").join(name);
         let bytes = std::fs::read(&copy).unwrap();
         gltf::Gltf::from_slice(&bytes).unwrap_or_else(|e| panic!("{sample}: {e}"));

@@ -26,6 +26,8 @@ fn expected_count(rule: Rule) -> usize {
         Rule::InsideOutShell => 1,
         Rule::Cavity => 1,
         Rule::MirroredInstance => 1,
+        Rule::SelfIntersection => 1,
+        Rule::IntersectingComponents => 1,
     }
 }
 

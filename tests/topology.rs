@@ -1325,8 +1325,12 @@ fn cubes_lined_up_along_z_nest_correctly() {
 /// V 8 + 7 = 15; E 18 + (6 base edges + 3 base diagonals + 6 slant edges) = 33; F 12 + 4 + 6 = 22;
 /// chi = 15 - 33 + 22 = 4. 2 components, 2 shells of genus 0. Pyramid: base area = the rectangle
 /// `[1.5,2.5] x [1,3]` (2) plus two triangles of base 2 and height 0.5 (0.5 each) = 3; volume
-/// 3 x 1 / 3 = 1, raw -1 (facing the void). The cube at depth 0, the pyramid at depth 1: volume
-/// 64 - 1 = 63.
+/// 3 x 1 / 3 = 1, raw -1 (facing the void). Nesting alone (no search for faces that meet): the
+/// cube at depth 0, the pyramid at depth 1: volume 64 - 1 = 63.
+///
+/// With the search, the pyramid's base lies on the cube's floor: their faces touch, 1 pair of
+/// components meets, so the pyramid has no depth against the cube. On its own it must enclose
+/// positive volume, and facing the void it does not: a depth-0 solid, inside out (volume 64 + 1).
 #[test]
 fn cavity_whose_first_faces_lie_on_the_outer_surface() {
     let base = [
@@ -1343,7 +1347,12 @@ fn cavity_whose_first_faces_lie_on_the_outer_surface() {
     let mut triangles: Vec<[u32; 3]> = (1..5).map(|i| [0, i + 1, i]).collect();
     triangles.extend((0..6).map(|i| [i, (i + 1) % 6, 6]));
     let pyramid = Mesh::new(positions, triangles);
-    let a = run(&merge(&[cube_at(0.0, 4.0), flipped(&pyramid)]));
+    let mesh = merge(&[cube_at(0.0, 4.0), flipped(&pyramid)]);
+    let nesting_alone = Options {
+        intersections: None,
+        ..Options::default()
+    };
+    let a = analyse(&mesh, &nesting_alone);
     assert_eq!(
         counts(&a),
         Counts {
@@ -1358,6 +1367,15 @@ fn cavity_whose_first_faces_lie_on_the_outer_surface() {
     );
     assert_eq!(a.inside_out_shells(), 0);
     assert_volume(a.volume(), Some(63.0));
+
+    let a = run(&mesh);
+    assert_eq!(a.intersecting_components(), Some(1));
+    assert_shells(
+        &a,
+        &[(0, Role::Solid, Some(64.0)), (0, Role::Solid, Some(-1.0))],
+    );
+    assert_eq!(a.inside_out_shells(), 1);
+    assert_volume(a.volume(), Some(65.0));
 }
 
 /// The first segment direction of the point-in-solid test, `(1, 1.234567891e-4, 2.718281828e-4)`,
@@ -1460,6 +1478,7 @@ fn tolerance_welds_jittered_soup_into_the_cube() {
         &jittered_cube_soup(),
         &Options {
             weld_tolerance: 1e-4,
+            ..Options::default()
         },
     );
     assert_eq!(
@@ -2463,4 +2482,94 @@ fn a_closed_component_pinched_at_a_vertex_is_a_solid_not_a_shell() {
     let a = run(&flipped(&mesh));
     assert_eq!((a.solids(), a.inside_out_shells()), (1, 1));
     assert!(close(a.volume().unwrap(), 176.0 / 3.0), "{:?}", a.volume());
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Shells that cross: no depth against each other
+// ---------------------------------------------------------------------------------------------------
+
+/// An L-shaped prism: the L `(0,0) (4,0) (4,2) (2,2) (2,4) (0,4)` (area 16 - 4 = 12, split into
+/// four triangles) from z = 0 to 4, wound outward: volume 48.
+fn l_prism() -> Mesh {
+    let l = [
+        [0.0, 0.0],
+        [4.0, 0.0],
+        [4.0, 2.0],
+        [2.0, 2.0],
+        [2.0, 4.0],
+        [0.0, 4.0],
+    ];
+    let mut positions: Vec<[f64; 3]> = l.iter().map(|p| [p[0], p[1], 0.0]).collect();
+    positions.extend(l.iter().map(|p| [p[0], p[1], 4.0]));
+    let cap: [[u32; 3]; 4] = [[0, 1, 2], [0, 2, 3], [0, 3, 5], [3, 4, 5]];
+    let mut triangles: Vec<[u32; 3]> = cap.iter().map(|t| [t[0], t[2], t[1]]).collect();
+    triangles.extend(cap.iter().map(|t| t.map(|v| v + 6)));
+    for i in 0..6u32 {
+        let j = (i + 1) % 6;
+        triangles.extend([[i, j, j + 6], [i, j + 6, i + 6]]);
+    }
+    Mesh::new(positions, triangles)
+}
+
+/// The L-prism and a unit cube `[1.5,2.5]^3` in its inner corner, both wound outward. The cube's
+/// box lies in the L's box and its lowest vertex, (1.5, 1.5, 1.5), inside the L, so point-in-solid
+/// parity would call it a cavity, and (wound outward) inside out. But it crosses the L's inner
+/// walls (x = 2 for y in [2, 2.5], y = 2 for x in [2, 2.5]): their faces meet, 1 pair of
+/// components, 0 within either, so neither has depth against the other. Both are depth-0 solids,
+/// nothing is inside out, and the volume, 48 + 1 = 49, counts their overlap twice. Without the
+/// search the parity guess comes back: depth 1, a cavity, inside out.
+#[test]
+fn shells_that_cross_have_no_depth_against_each_other() {
+    let mesh = merge(&[l_prism(), cube_at(1.5, 1.0)]);
+    let a = run(&mesh);
+    assert_eq!(
+        (a.self_intersections(), a.intersecting_components()),
+        (Some(0), Some(1))
+    );
+    assert_shells(
+        &a,
+        &[(0, Role::Solid, Some(48.0)), (0, Role::Solid, Some(1.0))],
+    );
+    assert_eq!(
+        (a.inside_out_shells(), a.cavities(), a.overlapping_shells()),
+        (0, 0, 1)
+    );
+    assert_eq!(
+        (a.shells[0].meets.as_slice(), a.shells[1].meets.as_slice()),
+        (&[1][..], &[0][..])
+    );
+    assert_volume(a.volume(), Some(49.0));
+
+    let blind = analyse(
+        &mesh,
+        &Options {
+            intersections: None,
+            ..Options::default()
+        },
+    );
+    assert_eq!(blind.self_intersections(), None);
+    assert_shells(
+        &blind,
+        &[(0, Role::Solid, Some(48.0)), (1, Role::Cavity, Some(1.0))],
+    );
+    assert_eq!(blind.inside_out_shells(), 1);
+}
+
+/// A unit cube inside a 3-cube (`[1,2]^3` in `[0,3]^3`), wound into the void: no face meets
+/// another (a gap of 1 all round), so nesting holds as before: a solid of 27 around a correct
+/// cavity of -1, volume 26.
+#[test]
+fn a_cavity_that_meets_nothing_is_still_a_cavity() {
+    let mesh = merge(&[cube_at(0.0, 3.0), flipped(&cube_at(1.0, 1.0))]);
+    let a = run(&mesh);
+    assert_eq!(
+        (a.self_intersections(), a.intersecting_components()),
+        (Some(0), Some(0))
+    );
+    assert_shells(
+        &a,
+        &[(0, Role::Solid, Some(27.0)), (1, Role::Cavity, Some(-1.0))],
+    );
+    assert_eq!((a.inside_out_shells(), a.overlapping_shells()), (0, 0));
+    assert_volume(a.volume(), Some(26.0));
 }

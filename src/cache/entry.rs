@@ -3,23 +3,22 @@
 
 use std::io::{self};
 
-use super::pack::{frame_check, Id, FRAME, MAGIC, MAX_BODY};
 use crate::report::Outcome;
 use crate::report::{Row, ShellRow};
 use crate::rules::{Finding, Rule, Severity};
 use crate::topology::Role;
 
 /// First line of every entry's body; bump the number when the body changes shape.
-pub(super) const HEADER: &[u8] = b"meshvet-cache 5\n";
+pub(super) const HEADER: &[u8] = b"meshvet-cache 6\n";
 
-/// A whole record: frame, then the body (header, checksum of the rest, the rest).
-pub(super) fn record(
-    id: &Id,
+/// An entry's body: the header, a checksum of the rest, the rest (key, content hash, stamps and
+/// dependencies, payload). A pack frames it ([`super::pack::record`]).
+pub(super) fn body(
     key: &blake3::Hash,
     content: &blake3::Hash,
     meta: &Meta,
     payload: &[u8],
-) -> io::Result<Vec<u8>> {
+) -> Vec<u8> {
     let mut rest = Vec::with_capacity(payload.len() + 200);
     rest.extend_from_slice(key.as_bytes());
     rest.extend_from_slice(content.as_bytes());
@@ -31,20 +30,11 @@ pub(super) fn record(
     put_len(&mut rest, meta.stamps.len());
     rest.extend_from_slice(&meta.stamps);
     rest.extend_from_slice(payload);
-    let len = HEADER.len() + 32 + rest.len();
-    if len > MAX_BODY {
-        return Err(io::Error::other("the entry is too large for the cache"));
-    }
-    let mut out = Vec::with_capacity(FRAME + len);
-    out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&id.to_le_bytes());
-    out.extend_from_slice(&(len as u32).to_le_bytes());
-    let check = frame_check(&out[4..16]);
-    out.extend_from_slice(&check.to_le_bytes());
+    let mut out = Vec::with_capacity(HEADER.len() + 32 + rest.len());
     out.extend_from_slice(HEADER);
     out.extend_from_slice(blake3::hash(&rest).as_bytes());
     out.extend_from_slice(&rest);
-    Ok(out)
+    out
 }
 
 /// A body whose header and checksum match, parsed (the payload is decoded only when used).
@@ -204,6 +194,10 @@ pub(super) fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
             });
             out.push(u8::from(s.inside_out));
             out.push(u8::from(s.pinched));
+            put_len(&mut out, s.meets.len());
+            for &m in &s.meets {
+                put_u64(&mut out, m as u64);
+            }
         }
     }
     Ok(out)
@@ -260,6 +254,7 @@ pub(super) fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
                     },
                     inside_out: r.u8()? == 1,
                     pinched: r.u8()? == 1,
+                    meets: (0..r.len()?).map(|_| r.usize()).collect::<Option<_>>()?,
                 })
             })
             .collect::<Option<Vec<_>>>()?;

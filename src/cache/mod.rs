@@ -82,11 +82,11 @@ mod stamp;
 #[cfg(test)]
 mod tests;
 
-use entry::{decode, encode, now_secs, record, Entry, Meta};
+use entry::{body, decode, encode, now_secs, Entry, Meta};
 use key::{field, hash_file, settings_hash};
 use pack::{
-    copy_live, frame, list, load, pack_name, remove_if_there, remove_leftovers, Found, Id, Index,
-    Pack, AHEAD, FRAME, MAX_PACKS,
+    copy_live, frame, list, load, pack_name, record, remove_if_there, remove_leftovers, Found, Id,
+    Index, Pack, AHEAD, FRAME, MAX_PACKS,
 };
 use stamp::{put_stamps, settled, stamps, Stamp};
 
@@ -378,7 +378,7 @@ impl Cache {
         meta: &Meta,
         payload: &[u8],
     ) -> io::Result<()> {
-        let record = record(id, key, content, meta, payload)?;
+        let record = record(*id, &body(key, content, meta, payload))?;
         let mut own = self
             .own
             .lock()
@@ -451,7 +451,12 @@ impl Cache {
             if !index.is_empty() {
                 let name = pack_name(found.newest);
                 let mut out = AtomicFile::create(&self.dir.join(&name))?;
-                copy_live(&packs, &index.slots, &mut out)?;
+                copy_live(
+                    &packs,
+                    &index.slots,
+                    |body| Entry::verified(body).is_some(),
+                    &mut out,
+                )?;
                 out.commit()?;
             }
             drop(packs);

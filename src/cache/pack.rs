@@ -8,8 +8,6 @@ use std::io::{self, Write};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::entry::Entry;
-
 /// Starts every record. 0xF5 never occurs in UTF-8, so a search for the next record after damage
 /// rarely stops inside a body (and a false stop fails the frame's check).
 pub(super) const MAGIC: [u8; 4] = [0xF5, b'm', b'v', b'3'];
@@ -378,6 +376,23 @@ pub(super) fn frame(bytes: &[u8]) -> Option<(Id, usize)> {
     (check == frame_check(&bytes[4..16]) && len <= MAX_BODY).then_some((id, len))
 }
 
+/// A whole record: the frame (marker, identity, body length, check of the two), then `body`.
+pub(super) fn record(id: Id, body: &[u8]) -> std::io::Result<Vec<u8>> {
+    if body.len() > MAX_BODY {
+        return Err(std::io::Error::other(
+            "the entry is too large for the cache",
+        ));
+    }
+    let mut out = Vec::with_capacity(FRAME + body.len());
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&id.to_le_bytes());
+    out.extend_from_slice(&(body.len() as u32).to_le_bytes());
+    let check = frame_check(&out[4..16]);
+    out.extend_from_slice(&check.to_le_bytes());
+    out.extend_from_slice(body);
+    Ok(out)
+}
+
 /// FNV-1a of the identity and length: catches a damaged length or a false marker cheaply (the
 /// body has its own checksum).
 pub(super) fn frame_check(bytes: &[u8]) -> u32 {
@@ -402,8 +417,13 @@ pub(super) fn pack_name(newest: u64) -> String {
     )
 }
 
-/// Copies the indexed records that verify, in the order they were written.
-pub(super) fn copy_live(packs: &[Pack], index: &[Slot], out: &mut impl Write) -> io::Result<()> {
+/// Copies the indexed records whose body `verifies`, in the order they were written.
+pub(super) fn copy_live(
+    packs: &[Pack],
+    index: &[Slot],
+    verifies: impl Fn(&[u8]) -> bool,
+    out: &mut impl Write,
+) -> io::Result<()> {
     let mut slots = index.to_vec();
     slots.sort_unstable_by_key(|s| s.at);
     let mut window: Option<(usize, Window<'_>)> = None;
@@ -413,7 +433,7 @@ pub(super) fn copy_live(packs: &[Pack], index: &[Slot], out: &mut impl Write) ->
         }
         let (_, window) = window.as_mut().expect("set above");
         let record = window.get(slot.offset(), slot.len as usize)?;
-        if record.len() == slot.len as usize && Entry::verified(&record[FRAME..]).is_some() {
+        if record.len() == slot.len as usize && verifies(&record[FRAME..]) {
             out.write_all(record)?;
         }
     }

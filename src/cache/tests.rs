@@ -1,5 +1,7 @@
-use super::entry::{decode, encode, record, Entry, Meta, HEADER};
-use super::pack::{frame, frame_check, list, load, Id, Index, Slot, FRAME, MAGIC, MAX_PACKS};
+use super::entry::{body, decode, encode, Entry, Meta, HEADER};
+use super::pack::{
+    frame, frame_check, list, load, record, Id, Index, Slot, FRAME, MAGIC, MAX_PACKS,
+};
 use super::*;
 use crate::report::Row;
 use crate::rules::{Rule, Severity, Status};
@@ -164,6 +166,8 @@ fn cells_decode_as_the_csv_reader_reads_them() {
         findings: "hole:1".into(),
         status_after: "pass".into(),
         findings_after: "x".into(),
+        self_intersections: Some(26),
+        intersecting_components: Some(27),
     };
     for row in [row, Row::default()] {
         let outcome = Outcome {
@@ -356,7 +360,7 @@ fn a_frame_checks_its_identity_and_length() {
         stamps: Vec::new(),
     };
     let hash = blake3::hash(b"k");
-    let good = record(&7, &hash, &hash, &meta, b"payload").unwrap();
+    let good = record(7, &body(&hash, &hash, &meta, b"payload")).unwrap();
     assert_eq!(frame(&good), Some((7, good.len() - FRAME)));
     for at in [4, 11, 12, 15, 16, 19] {
         let mut bad = good.clone();

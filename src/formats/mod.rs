@@ -14,6 +14,7 @@ pub(crate) mod obj;
 pub(crate) mod off;
 pub(crate) mod ply;
 mod stl;
+mod text;
 pub(crate) mod threemf;
 pub mod write;
 
@@ -201,6 +202,17 @@ pub struct ReadContext {
     /// The scanned tree: glTF buffer URIs must resolve inside it.
     pub root: PathBuf,
     pub limits: Limits,
+}
+
+#[cfg(test)]
+impl ReadContext {
+    /// The current folder as the tree, default limits: for the readers' unit tests.
+    pub(crate) fn for_tests() -> ReadContext {
+        ReadContext {
+            root: ".".into(),
+            limits: Limits::default(),
+        }
+    }
 }
 
 /// Why a file could not be read. The message is for a person: what is wrong and what to do.

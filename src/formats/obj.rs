@@ -1,14 +1,17 @@
 //! OBJ (+MTL) reader: our own line parser for the geometry, tobj only for the material library.
 //!
 //! tobj drops unreferenced vertices, renumbers them by first use, splits by `usemtl` and cannot
-//! name a line (CRATES.md 5.6); a validator needs the file's own vertex list. So `v` lines become
+//! name a line; a validator needs the file's own vertex list. So `v` lines become
 //! `Mesh::positions` in file order, as stored (NaN kept), and `f` lines become triangles indexing
-//! them (1-based, negative = relative, polygons split by [`super::polygon`]). One file is one mesh
-//! whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` are recognised and skipped for
-//! now; points and lines are counted into notes. `mtllib` files are read with tobj under
+//! them (1-based, negative = relative, polygons split by [`crate::geometry::polygon`]). One file is
+//! one mesh whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` play no part in the
+//! topology; a repairing scan keeps them (with each face's polygon and corners) for the writer of the
+//! repaired copy ([`read_retaining`]); points and lines are counted into notes. `mtllib` files are read with tobj under
 //! `catch_unwind` (it panics on short colour lines), only when they are regular files inside the
 //! scanned tree (after symbolic links too, [`super::contain`]) and within `limits.max_file_bytes`;
-//! any MTL trouble is a note, never an error.
+//! any MTL trouble is a note, never an error. Binary content is refused ([`super::text`]). The
+//! common `v x y z` and `f a b c` lines are read in one pass over their bytes; anything else in
+//! them sends the line to the word-by-word reader, which owns every message.
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -16,6 +19,7 @@ use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use super::contain::{self, Location, Unresolved};
+use super::text::{self, Binary};
 use super::{Limits, ReadContext, ReadError, Retained, SideFiles};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -270,26 +274,27 @@ fn parse_with(
 
     let mut joined = String::new();
     let mut joined_line = 0u64;
-    for (k, raw) in text.split('\n').enumerate() {
-        let line_no = k as u64 + 1;
+    let mut start = 0;
+    let ends = memchr::memchr_iter(b'\n', text.as_bytes()).chain([text.len()]);
+    for (end, line_no) in ends.zip(1u64..) {
+        // Cut at line feeds: always character boundaries.
+        let raw = text.get(start..end).unwrap_or_default();
         let line = raw.strip_suffix('\r').unwrap_or(raw);
         // `\` at the end of a line continues the statement on the next line.
-        let trimmed = line.trim_end();
-        if let Some(head) = trimmed.strip_suffix('\\') {
+        if let Some(head) = continued(line) {
             if joined.is_empty() {
                 joined_line = line_no;
             }
             joined.push_str(head);
             joined.push(' ');
-            continue;
-        }
-        if !joined.is_empty() {
+        } else if !joined.is_empty() {
             joined.push_str(line);
             let statement = std::mem::take(&mut joined);
             p.statement(&statement, joined_line)?;
-            continue;
+        } else {
+            p.statement(line, line_no)?;
         }
-        p.statement(line, line_no)?;
+        start = end + 1;
     }
     if !joined.is_empty() {
         let statement = std::mem::take(&mut joined);
@@ -298,19 +303,11 @@ fn parse_with(
     p.finish(notes)
 }
 
-/// UTF-8 text of the file: BOM stripped, non-UTF-8 bytes replaced (with a note), UTF-16 refused.
+/// UTF-8 text of the file: BOM stripped, non-UTF-8 bytes replaced (with a note); UTF-16 and binary
+/// content refused ([`Binary`]).
 fn decode<'a>(bytes: &'a [u8], notes: &mut Vec<String>) -> Result<Cow<'a, str>, ReadError> {
-    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
-        return Err(ReadError::new(
-            "the OBJ file is UTF-16 text: OBJ must be ASCII or UTF-8 - re-save it as UTF-8 (any \
-             text editor can convert it)",
-        ));
-    }
-    if let Some(nul) = bytes.iter().take(4096).position(|&b| b == 0) {
-        return Err(ReadError::new(format!(
-            "not a text OBJ file: binary data (a zero byte at offset {nul}) - check that the file \
-             really is an OBJ (a renamed or corrupted file?)"
-        )));
+    if let Some(binary) = Binary::of(bytes) {
+        return Err(binary.error("OBJ"));
     }
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     match std::str::from_utf8(bytes) {
@@ -378,15 +375,15 @@ impl Parser<'_> {
     }
 
     /// Full read: the face just read, with its `vt`/`vn` indices and grouping state.
-    fn keep_face<'a>(&mut self, words: impl Iterator<Item = &'a str>) {
+    fn keep_face<'a>(&mut self, words: impl Iterator<Item = &'a [u8]>) {
         let Some(detail) = self.detail.as_mut() else {
             return;
         };
         if detail.states.last() != Some(&self.state) {
             detail.states.push(self.state.clone());
         }
-        let resolve = |word: Option<&str>, n: usize| -> Option<u32> {
-            let i: i64 = word?.parse().ok()?;
+        let resolve = |word: Option<&[u8]>, n: usize| -> Option<u32> {
+            let i = text::parse_i64(word?)?;
             let i = if i < 0 { n as i64 + i } else { i - 1 };
             (0..n as i64).contains(&i).then_some(i as u32)
         };
@@ -394,10 +391,10 @@ impl Parser<'_> {
         let first = detail.corners.len();
         detail.corners.extend(words.zip(&self.poly).map(|(w, &v)| {
             // Most files have `v` or `v/vt/vn` words; a plain `v` has nothing more to read.
-            let Some((_, rest)) = w.split_once('/') else {
+            let Some(slash) = w.iter().position(|&b| b == b'/') else {
                 return FaceCorner::new(v, None, None);
             };
-            let mut parts = rest.split('/');
+            let mut parts = w[slash + 1..].split(|&b| b == b'/');
             let vt = resolve(parts.next(), nt);
             let vn = resolve(parts.next(), nn);
             FaceCorner::new(v, vt, vn)
@@ -410,40 +407,53 @@ impl Parser<'_> {
     }
 
     fn statement(&mut self, line: &str, line_no: u64) -> Result<(), ReadError> {
-        let line = strip_comment(line);
-        let mut words = line.split_ascii_whitespace();
+        // Most lines of large files are `v x y z` and `f a b c`.
+        if let [keyword @ (b'v' | b'f'), b' ' | b'\t', rest @ ..] = line.as_bytes() {
+            if self.detail.is_none() {
+                let done = match keyword {
+                    b'v' => self.vertex_quickly(rest)?,
+                    _ => self.face_quickly(rest, line_no)?,
+                };
+                if done {
+                    return Ok(());
+                }
+            }
+        }
+        let mut words = statement_words(line.as_bytes());
         let Some(keyword) = words.next() else {
             return Ok(());
         };
         match keyword {
-            "v" => self.vertex(words, line_no),
-            "f" | "fo" => {
+            b"v" => self.vertex(words, line_no),
+            b"f" | b"fo" => {
                 self.face(words.clone(), line_no)?;
                 self.keep_face(words);
                 Ok(())
             }
-            "vt" | "vn" | "o" | "g" | "s" | "usemtl" if self.detail.is_some() => {
-                self.keep(keyword, line);
+            b"vt" | b"vn" | b"o" | b"g" | b"s" | b"usemtl" if self.detail.is_some() => {
+                let keyword = std::str::from_utf8(keyword).unwrap_or_default();
+                self.keep(keyword, strip_comment(line));
                 Ok(())
             }
-            "vt" | "vn" | "vp" | "o" | "g" | "s" | "usemtl" => Ok(()),
-            "mtllib" => {
-                let rest = line.trim_start()["mtllib".len()..].trim();
+            b"vt" | b"vn" | b"vp" | b"o" | b"g" | b"s" | b"usemtl" => Ok(()),
+            b"mtllib" => {
+                let rest = strip_comment(line).trim_start()["mtllib".len()..].trim();
                 if !rest.is_empty() {
                     self.mtllibs.push((rest.to_owned(), line_no));
                 }
                 Ok(())
             }
-            "p" => {
+            b"p" => {
                 count(&mut self.points, line_no);
                 Ok(())
             }
-            "l" => {
+            b"l" => {
                 count(&mut self.lines, line_no);
                 Ok(())
             }
             other => {
-                if self.skipped.len() < 32 || self.skipped.contains_key(other) {
+                let other = String::from_utf8_lossy(other);
+                if self.skipped.len() < 32 || self.skipped.contains_key(other.as_ref()) {
                     let name: String = other.chars().take(24).collect();
                     let e = self.skipped.entry(name).or_insert((0, line_no));
                     e.0 += 1;
@@ -458,7 +468,7 @@ impl Parser<'_> {
 
     fn vertex<'a>(
         &mut self,
-        mut words: impl Iterator<Item = &'a str>,
+        mut words: impl Iterator<Item = &'a [u8]>,
         line_no: u64,
     ) -> Result<(), ReadError> {
         let mut p = [0.0f64; 3];
@@ -471,15 +481,18 @@ impl Parser<'_> {
                     ),
                 ));
             };
-            *c = match w.parse::<f64>() {
-                Ok(x) => x,
-                Err(_) if w.contains("#IND") || w.contains("#QNAN") || w.contains("#INF") => {
+            *c = match text::parse_f64(w) {
+                Some(x) => x,
+                None if [&b"#IND"[..], b"#QNAN", b"#INF"]
+                    .iter()
+                    .any(|odd| memchr::memmem::find(w, odd).is_some()) =>
+                {
                     count(&mut self.odd_numbers, line_no);
                     f64::NAN
                 }
                 // `3.1+e2`: read like C's strtod (the leading number) and noted, as other
                 // readers do; a word with no leading number is an error.
-                Err(_) => match leading_number(w) {
+                None => match leading_number(w) {
                     Some(x) => {
                         count(&mut self.malformed, line_no);
                         x
@@ -493,12 +506,9 @@ impl Parser<'_> {
                 },
             };
         }
-        if self.mesh.positions.len() as u64 >= self.cx.limits.max_triangles {
-            return Err(over_limit("vertices", self.cx));
-        }
-        self.mesh.positions.push(p);
+        self.push_vertex(p)?;
         if let Some(detail) = self.detail.as_mut() {
-            let extra: Vec<&str> = words.collect();
+            let extra: Vec<Cow<str>> = words.map(String::from_utf8_lossy).collect();
             detail.vertex_extra.push(extra.join(" "));
         }
         Ok(())
@@ -506,15 +516,17 @@ impl Parser<'_> {
 
     fn face<'a>(
         &mut self,
-        words: impl Iterator<Item = &'a str>,
+        words: impl Iterator<Item = &'a [u8]>,
         line_no: u64,
     ) -> Result<(), ReadError> {
-        let n = self.mesh.positions.len() as i64;
         self.poly.clear();
         let mut forward = false;
         for w in words {
-            let v = w.split('/').next().unwrap_or("");
-            let i: i64 = v.parse().map_err(|_| {
+            let v = w
+                .iter()
+                .position(|&b| b == b'/')
+                .map_or(w, |slash| &w[..slash]);
+            let i = text::parse_i64(v).ok_or_else(|| {
                 line_err(
                     line_no,
                     format!(
@@ -523,43 +535,99 @@ impl Parser<'_> {
                     ),
                 )
             })?;
-            let index =
-                match i {
-                    0 => return Err(line_err(
-                        line_no,
-                        "face index 0: OBJ indices start at 1 - the exporter is broken, re-export",
-                    )),
-                    i if i < 0 => {
-                        let abs = n + i;
-                        if abs < 0 {
-                            return Err(line_err(
-                                line_no,
-                                format!(
-                                "relative face index {i} points before the first vertex (only {n} \
-                                 vertices so far) - fix the face or re-export"
-                            ),
-                            ));
-                        }
-                        abs as u64
-                    }
-                    i => {
-                        let i = i as u64;
-                        if i > self.max_index.0 {
-                            self.max_index = (i, line_no);
-                        }
-                        if i > n as u64 {
-                            forward = true;
-                        }
-                        i - 1
-                    }
-                };
-            if index >= u32::MAX as u64 {
-                return Err(line_err(line_no, format!("face index {i} is out of range")));
-            }
-            self.poly.push(index as u32);
+            self.corner(i, &mut forward, line_no)?;
         }
+        self.split_face(forward, line_no)
+    }
+
+    /// [`Parser::face`] for the common line `f a b c ...` whose corners are `i`, `i/...` words
+    /// (`rest` is the line after `f `): reads it in one pass over the bytes and returns true, or
+    /// returns false, having kept nothing, at anything else (the words are then read again by
+    /// `face`, which says what is wrong). Errors of the indices themselves are the same either way.
+    #[inline]
+    fn face_quickly(&mut self, rest: &[u8], line_no: u64) -> Result<bool, ReadError> {
+        self.poly.clear();
+        let mut forward = false;
+        let mut at = 0;
+        loop {
+            while rest.get(at).is_some_and(u8::is_ascii_whitespace) {
+                at += 1;
+            }
+            match rest.get(at) {
+                None | Some(b'#') => break,
+                Some(_) => {}
+            }
+            let Some((i, end)) = text::leading_i64(&rest[at..]) else {
+                return Ok(false);
+            };
+            at += end;
+            match rest.get(at) {
+                None => {}
+                Some(b) if b.is_ascii_whitespace() => {}
+                Some(b'/') => {
+                    while rest.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
+                        at += 1;
+                    }
+                }
+                Some(_) => return Ok(false),
+            }
+            self.corner(i, &mut forward, line_no)?;
+        }
+        self.split_face(forward, line_no)?;
+        Ok(true)
+    }
+
+    /// Adds corner `i` (as written: 1-based, or negative for relative) to the face being read.
+    #[inline(always)]
+    fn corner(&mut self, i: i64, forward: &mut bool, line_no: u64) -> Result<(), ReadError> {
+        let n = self.mesh.positions.len() as i64;
+        let index = match i {
+            0 => {
+                return Err(line_err(
+                    line_no,
+                    "face index 0: OBJ indices start at 1 - the exporter is broken, re-export",
+                ))
+            }
+            i if i < 0 => {
+                let abs = n + i;
+                if abs < 0 {
+                    return Err(line_err(
+                        line_no,
+                        format!(
+                            "relative face index {i} points before the first vertex (only {n} \
+                             vertices so far) - fix the face or re-export"
+                        ),
+                    ));
+                }
+                abs as u64
+            }
+            i => {
+                let i = i as u64;
+                if i > self.max_index.0 {
+                    self.max_index = (i, line_no);
+                }
+                if i > n as u64 {
+                    *forward = true;
+                }
+                i - 1
+            }
+        };
+        if index >= u32::MAX as u64 {
+            return Err(line_err(line_no, format!("face index {i} is out of range")));
+        }
+        self.poly.push(index as u32);
+        Ok(())
+    }
+
+    /// Splits the face read into `self.poly` into triangles (later, when it names vertices not
+    /// read yet).
+    #[inline]
+    fn split_face(&mut self, forward: bool, line_no: u64) -> Result<(), ReadError> {
         let before = self.mesh.triangles.len();
-        if forward && self.poly.len() > 3 {
+        if let [a, b, c] = self.poly[..] {
+            // What `triangulate` does with a triangle, known or not (the tally ignores it).
+            self.mesh.triangles.push([a, b, c]);
+        } else if forward && self.poly.len() > 3 {
             // Positions not known yet: reserve the n-2 slots, split at the end.
             self.deferred.push((before, line_no, self.poly.clone()));
             self.mesh
@@ -576,6 +644,39 @@ impl Parser<'_> {
         if self.mesh.triangles.len() as u64 > self.cx.limits.max_triangles {
             return Err(over_limit("triangles", self.cx));
         }
+        Ok(())
+    }
+
+    /// [`Parser::vertex`] for the common line `v x y z ...` (`rest` is the line after `v `):
+    /// true when its first three words are numbers, read in one pass; false, having kept
+    /// nothing, at anything else (`vertex` then reads the words again and says what is wrong).
+    #[inline]
+    fn vertex_quickly(&mut self, rest: &[u8]) -> Result<bool, ReadError> {
+        let mut p = [0.0f64; 3];
+        let mut at = 0;
+        for c in &mut p {
+            while rest.get(at).is_some_and(u8::is_ascii_whitespace) {
+                at += 1;
+            }
+            let Ok((x, n)) = fast_float2::parse_partial::<f64, _>(&rest[at.min(rest.len())..])
+            else {
+                return Ok(false);
+            };
+            at += n;
+            if rest.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
+                return Ok(false);
+            }
+            *c = x;
+        }
+        self.push_vertex(p)?;
+        Ok(true)
+    }
+
+    fn push_vertex(&mut self, p: [f64; 3]) -> Result<(), ReadError> {
+        if self.mesh.positions.len() as u64 >= self.cx.limits.max_triangles {
+            return Err(over_limit("vertices", self.cx));
+        }
+        self.mesh.positions.push(p);
         Ok(())
     }
 
@@ -649,7 +750,8 @@ impl Parser<'_> {
 }
 
 /// The longest leading part of `w` that is a number (like C's `strtod`), if any.
-fn leading_number(w: &str) -> Option<f64> {
+fn leading_number(w: &[u8]) -> Option<f64> {
+    let w = std::str::from_utf8(w).ok()?;
     if w.len() > 64 {
         return None;
     }
@@ -680,8 +782,30 @@ fn count(c: &mut (u64, u64), line: u64) {
     c.0 += 1;
 }
 
-fn short(w: &str) -> String {
-    w.chars().take(40).collect()
+fn short(w: &[u8]) -> String {
+    String::from_utf8_lossy(w).chars().take(40).collect()
+}
+
+/// The words of a statement: the line's words up to one that starts with `#` (a comment; a `#`
+/// inside a word is part of it: `1.#IND`).
+fn statement_words(line: &[u8]) -> impl Iterator<Item = &[u8]> + Clone {
+    text::words(line).take_while(|w| w[0] != b'#')
+}
+
+/// The line without its final `\` when it ends with one (trailing whitespace aside): the statement
+/// continues on the next line. As `line.trim_end().strip_suffix('\\')`, without decoding
+/// characters unless the line ends with a non-ASCII one.
+fn continued(line: &str) -> Option<&str> {
+    let b = line.as_bytes();
+    let mut n = b.len();
+    while n > 0 && matches!(b[n - 1], b'\t'..=b'\r' | b' ') {
+        n -= 1;
+    }
+    match n.checked_sub(1).map(|last| b[last]) {
+        Some(b'\\') => line.get(..n - 1),
+        Some(c) if c >= 0x80 => line.trim_end().strip_suffix('\\'),
+        _ => None,
+    }
 }
 
 fn over_limit(what: &str, cx: &ReadContext) -> ReadError {
@@ -745,7 +869,7 @@ fn check_mtl(location: &Location, name: &str, line: u64, limits: &Limits) -> Opt
 
 /// Parses MTL bytes with tobj; trouble (including a tobj panic) becomes a note.
 fn check_mtl_bytes(name: &str, bytes: &[u8]) -> Option<String> {
-    // tobj panics on colour lines with fewer than 3 numbers (CRATES.md 5.1); find them first so
+    // tobj panics on colour lines with fewer than 3 numbers; find them first so
     // the note can name the line, and never hand them to tobj.
     let text = String::from_utf8_lossy(bytes);
     for (k, l) in text.lines().enumerate() {
@@ -781,10 +905,7 @@ mod tests {
     use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     fn mesh(s: &str) -> Mesh {
@@ -857,10 +978,48 @@ mod tests {
     #[test]
     fn encodings() {
         assert!(err(b"\xff\xfev\x000\x00").contains("UTF-16"));
-        assert!(err(b"\x89PNG\r\n\x1a\n\0\0\0").contains("binary data"));
+        assert!(err(b"\x89PNG\r\n\x1a\n\0\0\0").contains("looks like a PNG image"));
+        assert!(err(b"v 0 0 0\n\0").contains("binary data (a zero byte at offset 8)"));
         let m = parse(b"o caf\xe9\nv 0 0 0\n", &cx()).unwrap().mesh;
         assert_eq!(m.positions.len(), 1);
         assert!(m.notes[0].contains("not valid UTF-8"), "{:?}", m.notes);
+    }
+
+    /// The byte-level line helpers agree with the `str` operations they stand for: the words of
+    /// the comment-stripped line, and `trim_end().strip_suffix('\\')` (Unicode whitespace too).
+    #[test]
+    fn statement_words_and_continuations_match_their_definitions() {
+        for line in [
+            "v 1 2 3",
+            "v 1 2 3 # c",
+            "v 1.#IND 2#x 3",
+            "#v 1",
+            " # v",
+            "f 1 2 3#4 5",
+            "",
+            "f 1 \\",
+            "f 1 \\ \t",
+            "f 1 \\\u{a0}",
+            "f 1 \\\u{3000} \u{a0}",
+            "f 1\u{a0}",
+            "f \\x",
+            "\\",
+            " \\ ",
+            "caf\u{e9}\\",
+            "f 1 \\\x0b",
+        ] {
+            let ours: Vec<&[u8]> = statement_words(line.as_bytes()).collect();
+            let std: Vec<&[u8]> = strip_comment(line)
+                .split_ascii_whitespace()
+                .map(str::as_bytes)
+                .collect();
+            assert_eq!(ours, std, "`{line}`");
+            assert_eq!(
+                continued(line),
+                line.trim_end().strip_suffix('\\'),
+                "`{line}`"
+            );
+        }
     }
 
     #[test]

@@ -5,10 +5,12 @@
 //! or the next. `#` starts a comment anywhere. Each vertex is a line whose first three numbers are
 //! x y z (the rest of the line, whatever the variant, is ignored); each face is a line
 //! `n i0 ... i(n-1) [colour]`. Counts are checked against the file size before anything is
-//! allocated, indices are range-checked, and polygons are split by [`super::polygon`].
+//! allocated, indices are range-checked, and polygons are split by [`super::polygon`]. Binary
+//! content that is not `OFF BINARY` is refused with what it looks like ([`super::text`]).
 
 use std::path::Path;
 
+use super::text::{self, Binary};
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -47,73 +49,9 @@ impl<'a> Lines<'a> {
     }
 }
 
-/// Whitespace-separated tokens of the body, `#` comments skipped, with their 1-based lines.
-struct Cursor<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-    line: u64,
-}
-
-impl<'a> Cursor<'a> {
-    fn next(&mut self) -> Option<(&'a [u8], u64)> {
-        loop {
-            let &b = self.bytes.get(self.pos)?;
-            if b == b'#' {
-                self.skip_line();
-            } else if b.is_ascii_whitespace() {
-                if b == b'\n' {
-                    self.line += 1;
-                }
-                self.pos += 1;
-            } else {
-                break;
-            }
-        }
-        let start = self.pos;
-        while self
-            .bytes
-            .get(self.pos)
-            .is_some_and(|&b| !b.is_ascii_whitespace() && b != b'#')
-        {
-            self.pos += 1;
-        }
-        Some((&self.bytes[start..self.pos], self.line))
-    }
-
-    /// The rest of the current line (comment and surrounding blanks removed), then skips it.
-    fn rest_of_line(&mut self) -> &'a [u8] {
-        let start = self.pos;
-        let end = self.bytes[start..]
-            .iter()
-            .position(|&b| b == b'\n' || b == b'#')
-            .map_or(self.bytes.len(), |k| start + k);
-        self.skip_line();
-        self.bytes[start..end].trim_ascii()
-    }
-
-    /// Skips to the start of the next line.
-    fn skip_line(&mut self) {
-        while let Some(&b) = self.bytes.get(self.pos) {
-            self.pos += 1;
-            if b == b'\n' {
-                self.line += 1;
-                return;
-            }
-        }
-    }
-}
-
-fn words(line: &[u8]) -> impl Iterator<Item = &[u8]> {
-    line.split(|b| b.is_ascii_whitespace())
-        .filter(|w| !w.is_empty())
-}
-
-fn text(w: &[u8]) -> String {
+/// The first 40 bytes of a word, for a message.
+fn shown(w: &[u8]) -> String {
     String::from_utf8_lossy(&w[..w.len().min(40)]).into_owned()
-}
-
-fn number<T: std::str::FromStr>(w: &[u8]) -> Option<T> {
-    std::str::from_utf8(w).ok()?.parse().ok()
 }
 
 fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
@@ -154,11 +92,16 @@ fn parse_with(
         rest: bytes,
         line: 0,
     };
+    // Binary content is an error only where the text is not OFF: `OFF BINARY` has its own message.
+    let binary = Binary::of(bytes);
     let Some((first, first_no)) = lines.next() else {
+        if let Some(binary) = binary {
+            return Err(binary.error("OFF"));
+        }
         mesh.notes.push("the file is empty".into());
         return Ok(mesh);
     };
-    let mut head = words(first);
+    let mut head = text::words(first);
     let keyword = head.next().unwrap_or_default();
     if let Some(d) = detail.as_deref_mut() {
         d.keyword = String::from_utf8_lossy(keyword).into_owned();
@@ -173,10 +116,13 @@ fn parse_with(
         .filter(|(_, g)| g.iter().all(u8::is_ascii_digit))
         .map(|(k, g)| (&keyword[..k], g))
     else {
+        if let Some(binary) = binary {
+            return Err(binary.error("OFF"));
+        }
         let what = if first.iter().any(|&b| !(0x09..0x80).contains(&b)) {
             "binary data".to_string()
         } else {
-            format!("`{}`", text(keyword))
+            format!("`{}`", shown(keyword))
         };
         return Err(ReadError::new(format!(
             "not an OFF file: it starts with {what} instead of `OFF` - check that the file really \
@@ -216,7 +162,7 @@ fn parse_with(
                 .push("OFF header without counts: no vertices or faces".into());
             return Ok(mesh);
         };
-        counts = words(l).collect();
+        counts = text::words(l).collect();
         counts_no = no;
     }
     let count = |k: usize, what: &str| -> Result<u64, ReadError> {
@@ -226,10 +172,10 @@ fn parse_with(
                 format!("the header has no {what} count - it needs `vertices faces edges`"),
             )
         })?;
-        number::<u64>(w).ok_or_else(|| {
+        text::parse_u64(w).ok_or_else(|| {
             line_err(
                 counts_no,
-                format!("{what} count `{}` is not a whole number", text(w)),
+                format!("{what} count `{}` is not a whole number", shown(w)),
             )
         })
     };
@@ -267,11 +213,7 @@ fn parse_with(
     // The body is read as tokens that may cross lines (some writers wrap long faces); what
     // is left on a line after a vertex's x y z or a face's indices (normals, colours, texture
     // coordinates) is skipped.
-    let mut body = Cursor {
-        bytes: lines.rest,
-        pos: 0,
-        line: lines.line + 1,
-    };
+    let mut body = text::Tokens::<true>::new(lines.rest, lines.line + 1);
     let truncated = |k: u64, n: u64, what: &str| {
         ReadError::new(format!(
             "truncated OFF: the file ends after {k} of {n} {what} - re-export it"
@@ -280,11 +222,11 @@ fn parse_with(
     for k in 0..n_vertices {
         let mut p = [0.0f64; 3];
         for c in &mut p {
-            let (word, no) = body
-                .next()
+            let (x, no) = body
+                .number(text::leading_f64)
                 .ok_or_else(|| truncated(k, n_vertices, "vertices"))?;
-            *c = number(word).ok_or_else(|| {
-                line_err(no, format!("vertex {k}: `{}` is not a number", text(word)))
+            *c = x.map_err(|word| {
+                line_err(no, format!("vertex {k}: `{}` is not a number", shown(word)))
             })?;
         }
         match detail.as_deref_mut() {
@@ -299,20 +241,28 @@ fn parse_with(
     let mut tally = SplitTally::default();
     let mut poly = Vec::new();
     for k in 0..n_faces {
-        let (first, no) = body.next().ok_or_else(|| truncated(k, n_faces, "faces"))?;
-        let n: usize = number(first).ok_or_else(|| {
+        let (n, no) = body
+            .number(text::leading_u64)
+            .ok_or_else(|| truncated(k, n_faces, "faces"))?;
+        let count = |first: &[u8]| {
             line_err(
                 no,
-                format!("face {k}: `{}` is not a vertex count", text(first)),
+                format!("face {k}: `{}` is not a vertex count", shown(first)),
             )
-        })?;
+        };
+        let n = match n {
+            Ok(n) => usize::try_from(n).map_err(|_| count(&[]))?,
+            Err(first) => return Err(count(first)),
+        };
         poly.clear();
         for _ in 0..n {
-            let (word, no) = body.next().ok_or_else(|| truncated(k, n_faces, "faces"))?;
-            let i: i64 = number(word).ok_or_else(|| {
+            let (i, no) = body
+                .number(text::leading_i64)
+                .ok_or_else(|| truncated(k, n_faces, "faces"))?;
+            let i = i.map_err(|word| {
                 line_err(
                     no,
-                    format!("face {k}: `{}` is not a vertex index", text(word)),
+                    format!("face {k}: `{}` is not a vertex index", shown(word)),
                 )
             })?;
             if i < 0 || i as u64 >= n_vertices {
@@ -357,13 +307,9 @@ fn parse_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     fn ok(s: &str) -> Mesh {

@@ -1,12 +1,19 @@
-//! PLY reader (ASCII, binary little and big endian) on `ply-rs-bw` with our own `PropertyAccess`
-//! structs (its `DefaultElement` is a map per vertex: CRATES.md 5.8).
+//! PLY reader (ASCII, binary little and big endian): the header parsed by `ply-rs-bw`, the payload
+//! read here.
 //!
-//! The header is parsed by the crate; before any payload is read, every element count is checked
-//! against the bytes left in the file (a header claiming 4 billion vertices in a 1 KB file fails at
-//! once, without allocating). The payload is then read one element at a time, so faces go straight
-//! into triangles (split by [`super::polygon`]) and other elements are skipped without being kept.
-//! Vertex `x y z` may have any numeric type; face indices come from `vertex_indices` or
-//! `vertex_index` lists of any integer type and are range-checked here.
+//! Before any payload is read, every element count is checked against the bytes left in the file
+//! (a header claiming 4 billion vertices in a 1 KB file fails at once, without allocating). Each
+//! property's role (a vertex coordinate, a face's index list, or nothing) is worked out once per
+//! element. Binary vertices made only of scalars are decoded as fixed records in one pass, and
+//! binary faces of one index list with scalars around it (`list uchar int vertex_indices` is the
+//! common case) record by record without a per-face allocation, triangles straight into the mesh;
+//! any other layout, and the record where a bulk read stops (short, a negative length, an index
+//! out of range), goes through ply-rs's generic element reader with our own `PropertyAccess`
+//! structs (its `DefaultElement` is a map per vertex), which says exactly what is wrong. ASCII
+//! lines are split here (ply-rs's grammar rejects `nan` and `inf`), numbers parsed from bytes.
+//! Faces become triangles (polygons split by [`super::polygon`]); other elements are skipped
+//! without being kept. Vertex `x y z` may have any numeric type; face indices come from
+//! `vertex_indices` or `vertex_index` lists of any integer type and are range-checked here.
 
 use std::path::Path;
 
@@ -16,6 +23,7 @@ use ply_rs_bw::ply::{
     ScalarType,
 };
 
+use super::text::{self, Binary};
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
@@ -72,8 +80,6 @@ impl PropertyAccess for Vertex {
 struct Face {
     signed: Vec<i32>,
     unsigned: Vec<u32>,
-    /// From ASCII lines.
-    wide: Vec<i64>,
 }
 
 fn is_index_list(key: &str) -> bool {
@@ -159,15 +165,6 @@ impl PropertyAccess for Skip {
     }
 }
 
-fn scalar_size(t: &ScalarType) -> u64 {
-    match t {
-        ScalarType::Char | ScalarType::UChar => 1,
-        ScalarType::Short | ScalarType::UShort => 2,
-        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
-        ScalarType::Double => 8,
-    }
-}
-
 /// The fewest payload bytes one element can take: binary, the scalars and list counts (empty
 /// lists); ASCII, one character and one separator per property. An element with no properties
 /// takes no bytes in either encoding: it is skipped without reading (see [`parse`]), so its count,
@@ -182,8 +179,8 @@ fn min_element_bytes(def: &ElementDef, encoding: Encoding) -> u64 {
     def.properties
         .values()
         .map(|p| match &p.data_type {
-            PropertyType::Scalar(t) => scalar_size(t),
-            PropertyType::List(count, _) => scalar_size(count),
+            PropertyType::Scalar(t) => scalar_size(t) as u64,
+            PropertyType::List(count, _) => scalar_size(count) as u64,
         })
         .sum()
 }
@@ -195,6 +192,10 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         return Ok(mesh);
     }
     if !(bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r")) {
+        // Binary PLY exists: only another format's signature says more than the line below.
+        if let Some(other) = Binary::known(bytes) {
+            return Err(other.error("PLY"));
+        }
         return Err(ReadError::new(
             "not a PLY file: it does not start with the line `ply` - check that the file really \
              is a PLY (a renamed or corrupted file?)",
@@ -291,6 +292,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         line: header_lines,
     };
     let mut poly = Vec::new();
+    let mut indices = Vec::new();
     let mut stitches = 0;
     let vertices_read_before_faces = header
         .elements
@@ -299,23 +301,34 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         .is_none_or(|(v, f)| v < f);
     for def in header.elements.values() {
         match def.name.as_str() {
-            "vertex" => {
-                for i in 0..def.count {
-                    let v: Vertex = body.element(def, i)?;
-                    mesh.positions.push(v.0);
-                }
-            }
+            "vertex" => body.vertices(def, &mut mesh.positions)?,
             "face" => {
-                for i in 0..def.count {
-                    let f: Face = body.element(def, i)?;
+                let roles = roles(def);
+                let fixed = FixedFace::of(def).filter(|_| body.encoding != Encoding::Ascii);
+                let mut i = 0;
+                while i < def.count {
+                    // Binary triangles (most faces) go straight into the mesh, as `triangulate`
+                    // would put them (and the tally ignores triangles), as do ASCII ones below;
+                    // any other face, or one with an index out of range, is read below.
+                    if let Some(f) = fixed.as_ref().filter(|_| vertices_read_before_faces) {
+                        let limit = cx.limits.max_triangles;
+                        i += f.triangles(
+                            &mut body,
+                            def.count - i,
+                            n_vertices,
+                            limit,
+                            &mut mesh.triangles,
+                        );
+                        if mesh.triangles.len() as u64 > limit {
+                            return Err(over_limit(cx));
+                        }
+                        if i == def.count {
+                            break;
+                        }
+                    }
+                    body.indices(def, &roles, fixed.as_ref(), i, &mut indices)?;
                     poly.clear();
-                    for index in f
-                        .signed
-                        .iter()
-                        .map(|&k| k as i64)
-                        .chain(f.unsigned.iter().map(|&k| k as i64))
-                        .chain(f.wide.iter().copied())
-                    {
+                    for &index in &indices {
                         if index < 0 || index as usize >= n_vertices {
                             return Err(ReadError::new(format!(
                                 "PLY face {i}{}: vertex index {index} is out of range (the file \
@@ -325,32 +338,26 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                         }
                         poly.push(index as u32);
                     }
-                    if vertices_read_before_faces {
+                    if !vertices_read_before_faces {
+                        faces.push((i as u64, poly.clone()));
+                    } else if let [a, b, c] = poly[..] {
+                        mesh.triangles.push([a, b, c]);
+                    } else {
                         let split =
                             polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
                         tally.add(split, i as u64);
-                    } else {
-                        faces.push((i as u64, poly.clone()));
                     }
                     if mesh.triangles.len() as u64 > cx.limits.max_triangles {
-                        return Err(ReadError::new(format!(
-                            "the file has more than {} triangles, over the limit: raise \
-                             limits.max_triangles in the config to scan it",
-                            cx.limits.max_triangles
-                        )));
+                        return Err(over_limit(cx));
                     }
+                    i += 1;
                 }
             }
             "tristrips" if def.properties.keys().any(|k| is_index_list(k)) => {
+                let roles = roles(def);
                 for i in 0..def.count {
-                    let f: Face = body.element(def, i)?;
-                    let strip = f
-                        .signed
-                        .iter()
-                        .map(|&k| k as i64)
-                        .chain(f.unsigned.iter().map(|&k| k as i64))
-                        .chain(f.wide.iter().copied());
-                    stitches += add_strip(strip, n_vertices, &mut mesh.triangles)
+                    body.indices(def, &roles, None, i, &mut indices)?;
+                    stitches += add_strip(indices.iter().copied(), n_vertices, &mut mesh.triangles)
                         .map_err(|index| {
                             ReadError::new(format!(
                                 "PLY tristrips {i}{}: vertex index {index} is out of range (the \
@@ -359,11 +366,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                             ))
                         })?;
                     if mesh.triangles.len() as u64 > cx.limits.max_triangles {
-                        return Err(ReadError::new(format!(
-                            "the file has more than {} triangles, over the limit: raise \
-                             limits.max_triangles in the config to scan it",
-                            cx.limits.max_triangles
-                        )));
+                        return Err(over_limit(cx));
                     }
                 }
             }
@@ -379,9 +382,7 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 }
             }
             _ => {
-                for i in 0..def.count {
-                    let _: Skip = body.element(def, i)?;
-                }
+                body.skip(def)?;
                 if def.count > 0 {
                     mesh.notes.push(format!(
                         "PLY element `{}` ({} entries) skipped",
@@ -421,87 +422,286 @@ pub(crate) fn header(bytes: &[u8]) -> Result<(String, ply_rs_bw::ply::Header, us
     Ok((text, header, body_start))
 }
 
-/// Filling an element from ASCII tokens. ply-rs's ASCII grammar rejects `nan` and `inf`, which
-/// a validator must read (and report), so ASCII payload lines are split here.
-trait Ascii {
-    /// A scalar property; false when the token is not a number where one is needed.
-    fn scalar(&mut self, _key: &str, _token: &str) -> bool {
-        true
-    }
-    /// One item of a list property.
-    fn list_item(&mut self, _key: &str, _token: &str) -> bool {
-        true
-    }
+fn over_limit(cx: &ReadContext) -> ReadError {
+    ReadError::new(format!(
+        "the file has more than {} triangles, over the limit: raise limits.max_triangles in the \
+         config to scan it",
+        cx.limits.max_triangles
+    ))
 }
 
-impl Ascii for Vertex {
-    fn scalar(&mut self, key: &str, token: &str) -> bool {
-        match token.parse::<f64>() {
-            Ok(v) => {
-                self.set(key, v);
-                true
-            }
-            Err(_) => !matches!(key, "x" | "y" | "z"),
-        }
-    }
+/// What the reader takes from a property of an element.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Role {
+    /// Coordinate 0, 1 or 2 of a vertex (scalar `x`, `y`, `z` of the `vertex` element).
+    Axis(usize),
+    /// A face's or strip's vertex indices (`vertex_indices` or `vertex_index`).
+    Indices,
+    /// Read past.
+    Other,
 }
 
-impl Ascii for Face {
-    fn list_item(&mut self, key: &str, token: &str) -> bool {
-        if !is_index_list(key) {
-            return true;
-        }
-        match token.parse::<i64>() {
-            Ok(v) => {
-                self.wide.push(v);
-                true
-            }
-            Err(_) => false,
-        }
-    }
+/// The role of each property of `def`, in order: axes in `vertex`, index lists in `face` and
+/// `tristrips`, nothing elsewhere.
+fn roles(def: &ElementDef) -> Vec<Role> {
+    def.properties
+        .iter()
+        .map(|(key, p)| match (def.name.as_str(), &p.data_type) {
+            ("vertex", PropertyType::Scalar(_)) => match key.as_str() {
+                "x" => Role::Axis(0),
+                "y" => Role::Axis(1),
+                "z" => Role::Axis(2),
+                _ => Role::Other,
+            },
+            ("face" | "tristrips", PropertyType::List(..)) if is_index_list(key) => Role::Indices,
+            _ => Role::Other,
+        })
+        .collect()
 }
 
-impl Ascii for Skip {}
-
-/// One ASCII element line, property by property (tokens beyond the declared ones are ignored).
-fn read_ascii_element<E: PropertyAccess + Ascii>(
-    line: &str,
+/// One ASCII element line, property by property (tokens beyond the declared ones are ignored):
+/// coordinates into `xyz`, index list items appended to `indices`. ply-rs's ASCII grammar rejects
+/// `nan` and `inf`, which a validator must read (and report), so ASCII lines are split here.
+/// Only the numbers the reader takes are parsed: any token fills another scalar or list item.
+fn ascii_record(
+    line: &[u8],
     def: &ElementDef,
-) -> Result<E, String> {
-    let mut e = E::new();
-    let mut tokens = line.split_ascii_whitespace();
-    for (key, p) in &def.properties {
+    roles: &[Role],
+    xyz: &mut [f64; 3],
+    indices: &mut Vec<i64>,
+) -> Result<(), String> {
+    let mut tokens = text::Tokens::<false>::new(line, 0);
+    for ((key, p), &role) in def.properties.iter().zip(roles) {
         let missing = || format!("the line ends before property `{key}`");
-        let token = tokens.next().ok_or_else(missing)?;
-        match &p.data_type {
-            PropertyType::Scalar(_) => {
-                if !e.scalar(key, token) {
-                    return Err(format!(
-                        "`{}` is not a number (property `{key}`)",
-                        cut(token)
-                    ));
-                }
-            }
-            PropertyType::List(..) => {
-                let n: usize = token.parse().map_err(|_| {
-                    format!("`{}` is not a list length (property `{key}`)", cut(token))
+        match (&p.data_type, role) {
+            (PropertyType::Scalar(_), Role::Axis(axis)) => {
+                let (x, _) = tokens.number(text::leading_f64).ok_or_else(missing)?;
+                xyz[axis] = x.map_err(|token| {
+                    format!("`{}` is not a number (property `{key}`)", cut(token))
                 })?;
+            }
+            (PropertyType::Scalar(_), _) => {
+                tokens.next().ok_or_else(missing)?;
+            }
+            (PropertyType::List(..), _) => {
+                let (n, _) = tokens.number(text::leading_u64).ok_or_else(missing)?;
+                let n = match n.map(usize::try_from) {
+                    Ok(Ok(n)) => n,
+                    Ok(Err(_)) => return Err(format!("list `{key}` is too long")),
+                    Err(token) => {
+                        return Err(format!(
+                            "`{}` is not a list length (property `{key}`)",
+                            cut(token)
+                        ))
+                    }
+                };
                 for k in 0..n {
-                    let item = tokens.next().ok_or_else(|| {
-                        format!("list `{key}` declares {n} items but the line has {k}")
-                    })?;
-                    if !e.list_item(key, item) {
-                        return Err(format!("`{}` is not an integer (list `{key}`)", cut(item)));
+                    let declared =
+                        || format!("list `{key}` declares {n} items but the line has {k}");
+                    if role == Role::Indices {
+                        let (i, _) = tokens.number(text::leading_i64).ok_or_else(declared)?;
+                        indices.push(i.map_err(|item| {
+                            format!("`{}` is not an integer (list `{key}`)", cut(item))
+                        })?);
+                    } else {
+                        tokens.next().ok_or_else(declared)?;
                     }
                 }
             }
         }
     }
-    Ok(e)
+    Ok(())
 }
 
-fn cut(token: &str) -> String {
-    token.chars().take(40).collect()
+/// The size in bytes of a binary scalar.
+pub(crate) fn scalar_size(t: &ScalarType) -> usize {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// The binary scalar of type `t` at the start of `b` (at least its size long), as an f64 (exact
+/// for every PLY type).
+#[inline]
+pub(crate) fn scalar(b: &[u8], t: &ScalarType, big: bool) -> f64 {
+    let mut a = [0u8; 8];
+    let n = scalar_size(t);
+    a[..n].copy_from_slice(&b[..n]);
+    if big {
+        a[..n].reverse();
+    }
+    match t {
+        ScalarType::Char => a[0] as i8 as f64,
+        ScalarType::UChar => a[0] as f64,
+        ScalarType::Short => i16::from_le_bytes([a[0], a[1]]) as f64,
+        ScalarType::UShort => u16::from_le_bytes([a[0], a[1]]) as f64,
+        ScalarType::Int => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        ScalarType::UInt => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        ScalarType::Float => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+        ScalarType::Double => f64::from_le_bytes(a),
+    }
+}
+
+/// The binary integer of type `t` at the start of `b` (at least its size long); a float type
+/// (never a list's length or an index list's type here) is cut to an integer.
+#[inline(always)]
+fn integer(b: &[u8], t: &ScalarType, big: bool) -> i64 {
+    let two = || [b[0], b[1]];
+    let four = || [b[0], b[1], b[2], b[3]];
+    match (t, big) {
+        (ScalarType::Char, _) => b[0] as i8 as i64,
+        (ScalarType::UChar, _) => b[0] as i64,
+        (ScalarType::Short, false) => i16::from_le_bytes(two()) as i64,
+        (ScalarType::Short, true) => i16::from_be_bytes(two()) as i64,
+        (ScalarType::UShort, false) => u16::from_le_bytes(two()) as i64,
+        (ScalarType::UShort, true) => u16::from_be_bytes(two()) as i64,
+        (ScalarType::Int, false) => i32::from_le_bytes(four()) as i64,
+        (ScalarType::Int, true) => i32::from_be_bytes(four()) as i64,
+        (ScalarType::UInt, false) => u32::from_le_bytes(four()) as i64,
+        (ScalarType::UInt, true) => u32::from_be_bytes(four()) as i64,
+        (ScalarType::Float | ScalarType::Double, _) => scalar(b, t, big) as i64,
+    }
+}
+
+/// A binary element of scalars only: every record has the same size.
+struct FixedRecord {
+    size: usize,
+    /// Offset and type of `x`, `y`, `z` (vertices only).
+    axes: Option<[(usize, ScalarType); 3]>,
+}
+
+impl FixedRecord {
+    fn of(def: &ElementDef) -> Option<FixedRecord> {
+        let mut size = 0;
+        let mut axes: [Option<(usize, ScalarType)>; 3] = [None, None, None];
+        for (p, role) in def.properties.values().zip(roles(def)) {
+            let PropertyType::Scalar(t) = &p.data_type else {
+                return None;
+            };
+            if let Role::Axis(axis) = role {
+                axes[axis] = Some((size, t.clone()));
+            }
+            size += scalar_size(t);
+        }
+        let axes = match axes {
+            [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+            _ => None,
+        };
+        Some(FixedRecord { size, axes })
+    }
+}
+
+/// A binary face element of one index list with an integer length and any scalars around it
+/// (`list uchar int vertex_indices` is the common case): its records are read here in bulk.
+#[derive(Debug)]
+struct FixedFace {
+    /// Bytes of the scalars before and after the list.
+    before: usize,
+    after: usize,
+    count: ScalarType,
+    item: ScalarType,
+}
+
+impl FixedFace {
+    fn of(def: &ElementDef) -> Option<FixedFace> {
+        let (mut before, mut after, mut list) = (0, 0, None);
+        for (key, p) in &def.properties {
+            match &p.data_type {
+                PropertyType::Scalar(t) if list.is_none() => before += scalar_size(t),
+                PropertyType::Scalar(t) => after += scalar_size(t),
+                PropertyType::List(count, item)
+                    if list.is_none()
+                        && is_index_list(key)
+                        && !matches!(count, ScalarType::Float | ScalarType::Double) =>
+                {
+                    list = Some((count.clone(), item.clone()));
+                }
+                PropertyType::List(..) => return None,
+            }
+        }
+        let (count, item) = list?;
+        Some(FixedFace {
+            before,
+            after,
+            count,
+            item,
+        })
+    }
+
+    /// The three indices of the record at the start of `rest` when it is a triangle, and the
+    /// bytes after it; `None` for a short record or another length ([`FixedFace::read`] then).
+    #[inline]
+    fn triangle<'a>(&self, rest: &'a [u8], big: bool) -> Option<([i64; 3], &'a [u8])> {
+        let size = scalar_size(&self.item);
+        let items = self.before + scalar_size(&self.count);
+        let end = items + 3 * size + self.after;
+        let record = rest.get(..end)?;
+        if integer(&record[self.before..], &self.count, big) != 3 {
+            return None;
+        }
+        let b = &record[items..];
+        let t = [0, size, 2 * size].map(|at| integer(&b[at..], &self.item, big));
+        Some((t, &rest[end..]))
+    }
+
+    /// Reads up to `count` faces from `body` straight into `out` while they are triangles whose
+    /// indices are below `n_vertices`, stopping too once `out` holds more than `limit`
+    /// triangles; returns how many it read.
+    fn triangles(
+        &self,
+        body: &mut Body<'_>,
+        count: usize,
+        n_vertices: usize,
+        limit: u64,
+        out: &mut Vec<[u32; 3]>,
+    ) -> usize {
+        let big = body.big();
+        let mut read = 0;
+        while read < count && out.len() as u64 <= limit {
+            let Some((t, rest)) = self.triangle(body.rest, big) else {
+                break;
+            };
+            if t.iter().any(|&k| k < 0 || k as usize >= n_vertices) {
+                break;
+            }
+            out.push(t.map(|k| k as u32));
+            body.rest = rest;
+            read += 1;
+        }
+        read
+    }
+
+    /// The indices of the record at the start of `rest` and the bytes after it; `None` when the
+    /// record is short or its length negative (the generic reader then says what is wrong).
+    #[inline]
+    fn read<'a>(&self, rest: &'a [u8], big: bool, indices: &mut Vec<i64>) -> Option<&'a [u8]> {
+        let count_size = scalar_size(&self.count);
+        let head = rest.get(self.before..self.before + count_size)?;
+        let n = integer(head, &self.count, big);
+        if n < 0 {
+            return None;
+        }
+        let item_size = scalar_size(&self.item);
+        let items_at = self.before + count_size;
+        let end = (n as usize)
+            .checked_mul(item_size)?
+            .checked_add(items_at + self.after)?;
+        let record = rest.get(..end)?;
+        let items = &record[items_at..end - self.after];
+        indices.extend(
+            items
+                .chunks_exact(item_size)
+                .map(|b| integer(b, &self.item, big)),
+        );
+        Some(&rest[end..])
+    }
+}
+
+fn cut(token: &[u8]) -> String {
+    String::from_utf8_lossy(token).chars().take(40).collect()
 }
 
 /// The header as clean `\n`-separated lines for ply-rs, the offset of the payload and the number
@@ -554,7 +754,7 @@ fn split_header(bytes: &[u8], notes: &mut Vec<String>) -> Result<(String, usize,
             if skipped == 1 {
                 notes.push(format!(
                     "PLY header line {line_no} is not a header statement (`{}`); skipped",
-                    cut(line)
+                    cut(line.as_bytes())
                 ));
             }
             continue;
@@ -583,6 +783,23 @@ fn flat(s: &str) -> String {
     s.chars().take(300).collect()
 }
 
+/// The next non-blank line of an ASCII PLY payload, moving `rest` past it; `line` counts the
+/// lines taken, blank ones too. A line ends at `\n`, `\r` or `\r\n` (files from old Macs end
+/// lines with a bare `\r`).
+pub(crate) fn next_line<'a>(rest: &mut &'a [u8], line: &mut u64) -> Option<&'a [u8]> {
+    while !rest.is_empty() {
+        let end = memchr::memchr2(b'\n', b'\r', rest).unwrap_or(rest.len());
+        let found = &rest[..end];
+        let crlf = rest.get(end..end + 2) == Some(b"\r\n");
+        *rest = rest.get(end + 1 + usize::from(crlf)..).unwrap_or(&[]);
+        *line += 1;
+        if !found.trim_ascii().is_empty() {
+            return Some(found);
+        }
+    }
+    None
+}
+
 /// The payload still to read, and (ASCII) the line number of the last line read.
 struct Body<'a> {
     encoding: Encoding,
@@ -590,7 +807,7 @@ struct Body<'a> {
     line: u64,
 }
 
-impl Body<'_> {
+impl<'a> Body<'a> {
     fn at(&self) -> String {
         if self.encoding == Encoding::Ascii {
             format!(" (line {})", self.line)
@@ -599,51 +816,143 @@ impl Body<'_> {
         }
     }
 
-    fn element<E: PropertyAccess + Ascii>(
+    fn big(&self) -> bool {
+        self.encoding == Encoding::BinaryBigEndian
+    }
+
+    /// Appends the positions of every vertex of `def` to `out`.
+    fn vertices(&mut self, def: &ElementDef, out: &mut Vec<[f64; 3]>) -> Result<(), ReadError> {
+        if self.encoding == Encoding::Ascii {
+            let roles = roles(def);
+            let mut indices = Vec::new();
+            for i in 0..def.count {
+                let mut xyz = [0.0; 3];
+                self.ascii(def, i, &roles, &mut xyz, &mut indices)?;
+                out.push(xyz);
+            }
+            return Ok(());
+        }
+        let mut first = 0;
+        if let Some(FixedRecord {
+            size,
+            axes: Some(axes),
+        }) = FixedRecord::of(def)
+        {
+            // Whole records in one pass; a short tail is left to the generic reader's error.
+            let whole = (self.rest.len() / size.max(1)).min(def.count);
+            let (block, rest) = self.rest.split_at(whole * size);
+            let big = self.big();
+            match axes {
+                [(0, ScalarType::Float), (4, ScalarType::Float), (8, ScalarType::Float)]
+                    if !big =>
+                {
+                    out.extend(block.chunks_exact(size).map(|r| {
+                        let f = |k: usize| {
+                            f32::from_le_bytes([r[k], r[k + 1], r[k + 2], r[k + 3]]) as f64
+                        };
+                        [f(0), f(4), f(8)]
+                    }))
+                }
+                _ => out.extend(
+                    block
+                        .chunks_exact(size)
+                        .map(|r| axes.each_ref().map(|(at, t)| scalar(&r[*at..], t, big))),
+                ),
+            }
+            self.rest = rest;
+            first = whole;
+        }
+        for i in first..def.count {
+            let v: Vertex = self.element(def, i)?;
+            out.push(v.0);
+        }
+        Ok(())
+    }
+
+    /// The vertex indices of element `i` of a face or strip element, into `indices` (cleared
+    /// first); `roles` are the element's [`roles`], `fixed` its bulk layout if it has one.
+    fn indices(
+        &mut self,
+        def: &ElementDef,
+        roles: &[Role],
+        fixed: Option<&FixedFace>,
+        i: usize,
+        indices: &mut Vec<i64>,
+    ) -> Result<(), ReadError> {
+        indices.clear();
+        if self.encoding == Encoding::Ascii {
+            return self.ascii(def, i, roles, &mut [0.0; 3], indices);
+        }
+        if let Some(rest) = fixed.and_then(|f| f.read(self.rest, self.big(), indices)) {
+            self.rest = rest;
+            return Ok(());
+        }
+        indices.clear();
+        let f: Face = self.element(def, i)?;
+        let signed = f.signed.iter().map(|&k| k as i64);
+        indices.extend(signed.chain(f.unsigned.iter().map(|&k| k as i64)));
+        Ok(())
+    }
+
+    /// Reads past every record of `def`.
+    fn skip(&mut self, def: &ElementDef) -> Result<(), ReadError> {
+        if self.encoding == Encoding::Ascii {
+            let roles = roles(def);
+            let mut indices = Vec::new();
+            for i in 0..def.count {
+                self.ascii(def, i, &roles, &mut [0.0; 3], &mut indices)?;
+            }
+            return Ok(());
+        }
+        let mut first = 0;
+        if let Some(fixed) = FixedRecord::of(def) {
+            let whole = (self.rest.len() / fixed.size.max(1)).min(def.count);
+            self.rest = &self.rest[whole * fixed.size..];
+            first = whole;
+        }
+        for i in first..def.count {
+            let _: Skip = self.element(def, i)?;
+        }
+        Ok(())
+    }
+
+    /// ASCII element `i` of `def` (its line, read by [`ascii_record`]).
+    fn ascii(
         &mut self,
         def: &ElementDef,
         i: usize,
-    ) -> Result<E, ReadError> {
+        roles: &[Role],
+        xyz: &mut [f64; 3],
+        indices: &mut Vec<i64>,
+    ) -> Result<(), ReadError> {
+        let Some(line) = next_line(&mut self.rest, &mut self.line) else {
+            return Err(ReadError::new(format!(
+                "truncated PLY: the file ends after {i} of the {} `{}` elements its header \
+                 declares - re-export the file",
+                def.count, def.name
+            )));
+        };
+        if !line.is_ascii() && std::str::from_utf8(line).is_err() {
+            return Err(ReadError::new(format!(
+                "PLY line {}: not text in an ASCII PLY - the file is corrupted",
+                self.line
+            )));
+        }
+        ascii_record(line, def, roles, xyz, indices).map_err(|what| {
+            ReadError::new(format!(
+                "PLY {} {i} (line {}): {what} - fix or re-export the file",
+                def.name, self.line
+            ))
+        })
+    }
+
+    /// Binary element `i` of `def` through ply-rs's generic reader: for layouts not read in bulk,
+    /// and for the exact error where a bulk read stops (a short record, a negative length).
+    fn element<E: PropertyAccess>(&mut self, def: &ElementDef, i: usize) -> Result<E, ReadError> {
         let parser = Parser::<E>::new();
         let result = match self.encoding {
-            Encoding::Ascii => {
-                // One element per line; blank lines are tolerated.
-                let line = loop {
-                    if self.rest.is_empty() {
-                        return Err(ReadError::new(format!(
-                            "truncated PLY: the file ends after {i} of the {} `{}` elements its \
-                             header declares - re-export the file",
-                            def.count, def.name
-                        )));
-                    }
-                    let end = self
-                        .rest
-                        .iter()
-                        .position(|&b| b == b'\n' || b == b'\r')
-                        .unwrap_or(self.rest.len());
-                    let line = &self.rest[..end];
-                    let crlf = self.rest.get(end..end + 2) == Some(b"\r\n");
-                    self.rest = self.rest.get(end + 1 + usize::from(crlf)..).unwrap_or(&[]);
-                    self.line += 1;
-                    if !line.trim_ascii().is_empty() {
-                        break line;
-                    }
-                };
-                let text = std::str::from_utf8(line).map_err(|_| {
-                    ReadError::new(format!(
-                        "PLY line {}: not text in an ASCII PLY - the file is corrupted",
-                        self.line
-                    ))
-                })?;
-                return read_ascii_element(text, def).map_err(|what| {
-                    ReadError::new(format!(
-                        "PLY {} {i} (line {}): {what} - fix or re-export the file",
-                        def.name, self.line
-                    ))
-                });
-            }
-            Encoding::BinaryLittleEndian => parser.read_little_endian_element(&mut self.rest, def),
             Encoding::BinaryBigEndian => parser.read_big_endian_element(&mut self.rest, def),
+            _ => parser.read_little_endian_element(&mut self.rest, def),
         };
         result.map_err(|e| {
             if e.kind() == std::io::ErrorKind::UnexpectedEof {
@@ -667,13 +976,9 @@ impl Body<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     /// Strip 0 1 2 3 | 4 5 6 6 7 (-1 restarts): triangles 012, 213 (second window reversed), 456;
@@ -742,6 +1047,71 @@ mod tests {
             assert!(m.positions[2][0].is_nan());
             assert!(m.notes.iter().any(|n| n.contains("`edge`")));
         }
+    }
+
+    /// A binary file in the layouts read in bulk, with scalars around the axes and the list:
+    /// vertices `float x, uchar flag, float y, float z` (a unit square, 0 1 2 3 counter-clockwise)
+    /// and faces `uchar a, list <count> int vertex_indices, short b`. Faces: `faces`, each a list
+    /// of indices; `count` is the list's length type (`uchar` or `char`).
+    fn bulk(count: &str, faces: &[&[i32]]) -> Vec<u8> {
+        let mut b = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+             property uchar flag\nproperty float y\nproperty float z\nelement face {}\n\
+             property uchar a\nproperty list {count} int vertex_indices\nproperty short b\n\
+             end_header\n",
+            faces.len()
+        )
+        .into_bytes();
+        for [x, y] in [[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] {
+            b.extend(x.to_le_bytes());
+            b.push(7);
+            b.extend(y.to_le_bytes());
+            b.extend(0f32.to_le_bytes());
+        }
+        for face in faces {
+            b.push(9);
+            b.push(face.len() as u8);
+            for i in *face {
+                b.extend(i.to_le_bytes());
+            }
+            b.extend((-2i16).to_le_bytes());
+        }
+        b
+    }
+
+    /// Triangle, square, triangle: 1 + 2 + 1 triangles, the square split as a fan (convex); the
+    /// bulk reader stops at the square and takes up again after it. An index out of range, a
+    /// record cut short and a negative length are the generic reader's errors, naming the face.
+    #[test]
+    fn binary_bulk_layouts_read_every_face_and_keep_the_errors() {
+        let m = parse(
+            &bulk("uchar", &[&[0, 1, 2], &[0, 1, 2, 3], &[1, 2, 3]]),
+            &cx(),
+        )
+        .unwrap();
+        assert_eq!(m.positions[2], [1.0, 1.0, 0.0]);
+        assert_eq!(
+            m.triangles,
+            vec![[0, 1, 2], [0, 1, 2], [0, 2, 3], [1, 2, 3]]
+        );
+        let e = parse(&bulk("uchar", &[&[0, 1, 2], &[1, 2, 9]]), &cx())
+            .unwrap_err()
+            .0;
+        assert!(
+            e.starts_with("PLY face 1: vertex index 9 is out of range"),
+            "{e}"
+        );
+        let b = bulk("uchar", &[&[0, 1, 2], &[1, 2, 3]]);
+        let e = parse(&b[..b.len() - 3], &cx()).unwrap_err().0;
+        assert!(e.contains("ends inside `face` element 1"), "{e}");
+        let mut b = bulk("char", &[&[0, 1, 2], &[1, 2, 3]]);
+        let second = b.len() - (1 + 1 + 12 + 2) + 1;
+        b[second] = 0xFF; // a length of -1
+        let e = parse(&b, &cx()).unwrap_err().0;
+        assert!(
+            e.contains("PLY face 1: List length cannot be negative"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -1,24 +1,46 @@
-//! STL reader (ASCII and binary), our own rather than stl_io (CRATES.md 5.7: fragile detection, only
-//! the first `solid`, -0.0 welded apart).
+//! STL reader (ASCII and binary), our own rather than stl_io (whose detection is fragile, which
+//! reads only the first `solid` and welds -0.0 apart from 0.0).
 //!
 //! Detection: a file is binary exactly when its size is `84 + 50 n` for the triangle count `n` in its
 //! header, even when it starts with `solid` (many exporters write that into the binary header).
 //! Otherwise a file starting with `solid` (and holding text) is parsed as ASCII. Anything else is
 //! binary: a file longer than `84 + 50 n` is read as its `n` declared facets with a note about the
 //! bytes after them (exporters pad files), and a shorter one is truncated, reported with the
-//! declared and actual counts. Every facet contributes its
-//! own positions, exactly as stored (the analysis welds); ASCII loops with more than three vertices
-//! are split by [`super::polygon`].
+//! declared and actual counts; another format's signature or UTF-16 text is named instead
+//! ([`super::text`]). Every facet contributes its own positions, exactly as stored (the analysis
+//! welds); ASCII loops with more than three vertices are split by [`super::polygon`]. A binary
+//! file of exactly the declared size is read from disk in chunks and decoded as fixed 50-byte
+//! records, never held whole.
 
+use std::io::{Read as _, Seek as _};
 use std::path::Path;
 
+use super::text::{self, Binary};
 use super::{ReadContext, ReadError};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let bytes = std::fs::read(path)?;
+    let mut file = std::fs::File::open(path)?;
+    let size = file.metadata()?.len();
+    // A binary file of exactly the size its header declares (the common case) is read in chunks,
+    // never held whole; anything else is read whole and judged by `parse`.
+    let mut header = [0u8; HEADER];
+    if size >= HEADER as u64 && file.read_exact(&mut header).is_ok() {
+        let n = declared(&header);
+        if HEADER as u64 + FACET as u64 * n == size {
+            return read_binary(&mut file, n, cx).map(|m| vec![m]);
+        }
+    }
+    file.rewind()?;
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes)?;
     parse(&bytes, cx).map(|m| vec![m])
+}
+
+/// The triangle count of a binary header.
+fn declared(header: &[u8; HEADER]) -> u64 {
+    u32::from_le_bytes([header[80], header[81], header[82], header[83]]) as u64
 }
 
 /// Size of the binary header plus the triangle count.
@@ -32,24 +54,29 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         mesh.notes.push("the file is empty".into());
         return Ok(mesh);
     }
-    let declared = (bytes.len() >= HEADER)
-        .then(|| u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64);
+    let declared = bytes.first_chunk::<HEADER>().map(declared);
     if let Some(n) = declared {
         if HEADER as u64 + FACET as u64 * n == bytes.len() as u64 {
             return parse_binary(bytes, n, cx);
         }
     }
     // Binary data after a `solid` header (a binary file of the wrong size) is not ASCII STL.
-    if starts_with_solid(bytes) && !looks_binary(bytes) {
+    if starts_with_solid(bytes) && Binary::of(bytes).is_none() {
         return parse_ascii(bytes, cx);
     }
-    if looks_like_other_format(bytes) {
-        return Err(ReadError::new(
-            "not an STL file: the content is another format (an image, archive or other mesh \
-             format) with an .stl name - rename it to its real extension or re-export it as STL",
-        ));
+    // Binary data is binary STL, but not an image, an archive or another mesh format. A UTF-16
+    // byte order mark (two bytes a binary header may start with) is said only of a file that is
+    // no binary STL either.
+    let other = Binary::known(bytes);
+    if let Some(other @ Binary::Known(_)) = other {
+        return Err(other.error("STL"));
     }
     match declared {
+        _ if other == Some(Binary::Utf16)
+            && declared.is_none_or(|n| HEADER as u64 + FACET as u64 * n > bytes.len() as u64) =>
+        {
+            Err(Binary::Utf16.error("STL"))
+        }
         None => Err(ReadError::new(format!(
             "not an STL file: {} bytes, too short for a binary STL (at least 84 bytes) and it does \
              not start with `solid` - re-export the file",
@@ -104,29 +131,6 @@ fn starts_with_solid(bytes: &[u8]) -> bool {
         .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"))
 }
 
-/// Control bytes other than whitespace in the first kilobyte: this is no text file.
-fn looks_binary(bytes: &[u8]) -> bool {
-    bytes
-        .iter()
-        .take(1024)
-        .any(|&b| b < 0x20 && !b.is_ascii_whitespace() || b == 0x7f)
-}
-
-/// Magic numbers of formats that end up renamed to `.stl` (PNG, JPEG, ZIP, GLB, PLY, gzip).
-fn looks_like_other_format(bytes: &[u8]) -> bool {
-    [
-        &b"\x89PNG"[..],
-        b"\xff\xd8\xff",
-        b"PK\x03\x04",
-        b"glTF",
-        b"ply\n",
-        b"ply\r",
-        b"\x1f\x8b",
-    ]
-    .iter()
-    .any(|m| bytes.starts_with(m))
-}
-
 fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {
     if triangles > cx.limits.max_triangles {
         return Err(ReadError::new(format!(
@@ -138,77 +142,79 @@ fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {
     Ok(())
 }
 
+/// The `n` facets after the header of a binary file in memory.
 fn parse_binary(bytes: &[u8], n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
+    let n = checked(n, cx)?;
+    let mut positions = Vec::with_capacity(3 * n);
+    corners(&bytes[HEADER..HEADER + FACET * n], &mut positions);
+    Ok(binary_mesh(positions, n))
+}
+
+/// Facets read from a file per call: about 64 KB, in cache while they are decoded.
+const CHUNK: usize = 1310;
+
+/// The `n` facets of a binary file of exactly `84 + 50 n` bytes, read from `file` (past the
+/// header) a chunk at a time.
+fn read_binary(file: &mut std::fs::File, n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
+    let n = checked(n, cx)?;
+    let mut positions = Vec::with_capacity(3 * n);
+    let mut chunk = vec![0u8; FACET * CHUNK.min(n)];
+    let mut left = n;
+    while left > 0 {
+        let k = left.min(CHUNK);
+        file.read_exact(&mut chunk[..FACET * k]).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                ReadError::new(
+                    "the binary STL became shorter while it was read (another program is \
+                     writing it?) - scan it again when it is complete",
+                )
+            } else {
+                ReadError::from(e)
+            }
+        })?;
+        corners(&chunk[..FACET * k], &mut positions);
+        left -= k;
+    }
+    Ok(binary_mesh(positions, n))
+}
+
+/// `n` as a count of facets to read, within the limits and indexable.
+fn checked(n: u64, cx: &ReadContext) -> Result<usize, ReadError> {
     check_limit(n, cx)?;
     if 3 * n > u32::MAX as u64 {
         return Err(ReadError::new(format!(
             "binary STL with {n} triangles: more vertices than meshvet can index"
         )));
     }
-    // The size matched 84 + 50 n, so n facets are really there: the allocation is backed by data.
-    let n = n as usize;
-    let mut positions = Vec::with_capacity(3 * n);
-    let mut triangles = Vec::with_capacity(n);
-    let f = |b: &[u8], k: usize| {
-        f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]]) as f64
-    };
-    for (t, facet) in bytes[HEADER..].chunks_exact(FACET).enumerate() {
-        // Skip the facet normal (floats 0..3): the analysis derives orientation from the winding.
-        for v in 0..3 {
-            let k = 3 + 3 * v;
-            positions.push([f(facet, k), f(facet, k + 1), f(facet, k + 2)]);
-        }
-        let i = 3 * t as u32;
-        triangles.push([i, i + 1, i + 2]);
+    // The file size is 84 + 50 n (or more), so n facets are really there: allocations sized by n
+    // are backed by data.
+    Ok(n as usize)
+}
+
+/// Appends the three corners of every 50-byte facet of `facets`, exactly as stored. The facet
+/// normal (its first 12 bytes) is skipped: the analysis derives orientation from the winding.
+fn corners(facets: &[u8], positions: &mut Vec<[f64; 3]>) {
+    let (facets, _) = facets.as_chunks::<FACET>();
+    for f in facets {
+        let c = |k: usize| f32::from_le_bytes([f[k], f[k + 1], f[k + 2], f[k + 3]]) as f64;
+        positions.extend_from_slice(&[
+            [c(12), c(16), c(20)],
+            [c(24), c(28), c(32)],
+            [c(36), c(40), c(44)],
+        ]);
     }
+}
+
+/// The mesh of `n` facets whose corners are `positions`, in order.
+fn binary_mesh(positions: Vec<[f64; 3]>, n: usize) -> Mesh {
+    let triangles = (0..n as u32)
+        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        .collect();
     let mut mesh = Mesh::new(positions, triangles);
     if n == 0 {
         mesh.notes.push("binary STL with 0 triangles".into());
     }
-    Ok(mesh)
-}
-
-/// A whitespace-separated token and the 1-based line it starts on.
-struct Tokens<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-    line: u64,
-}
-
-impl<'a> Tokens<'a> {
-    fn next(&mut self) -> Option<(&'a [u8], u64)> {
-        while let Some(&b) = self.bytes.get(self.pos) {
-            if !b.is_ascii_whitespace() {
-                break;
-            }
-            if b == b'\n' {
-                self.line += 1;
-            }
-            self.pos += 1;
-        }
-        if self.pos >= self.bytes.len() {
-            return None;
-        }
-        let start = self.pos;
-        while self
-            .bytes
-            .get(self.pos)
-            .is_some_and(|b| !b.is_ascii_whitespace())
-        {
-            self.pos += 1;
-        }
-        Some((&self.bytes[start..self.pos], self.line))
-    }
-
-    /// Skips the rest of the current line (the name after `solid` / `endsolid`).
-    fn skip_line(&mut self) {
-        while let Some(&b) = self.bytes.get(self.pos) {
-            if b == b'\n' {
-                return;
-            }
-            self.pos += 1;
-        }
-    }
+    mesh
 }
 
 fn word(token: &[u8]) -> String {
@@ -216,11 +222,7 @@ fn word(token: &[u8]) -> String {
 }
 
 fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
-    let mut tokens = Tokens {
-        bytes,
-        pos: 0,
-        line: 1,
-    };
+    let mut tokens = text::Tokens::<false>::new(bytes, 1);
     let mut mesh = Mesh::default();
     let mut tally = SplitTally::default();
     let mut solids = 0u64;
@@ -259,10 +261,10 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                 }
                 let mut p = [0.0f64; 3];
                 for c in &mut p {
-                    let Some((num, l)) = tokens.next() else {
+                    let Some((x, l)) = tokens.number(text::leading_f64) else {
                         return err(line, "the file ends inside a vertex".into());
                     };
-                    *c = parse_f64(num).ok_or_else(|| {
+                    *c = x.map_err(|num| {
                         ReadError::new(format!(
                             "ASCII STL line {l}: `{}` is not a number - fix or re-export the file",
                             word(num)
@@ -288,7 +290,7 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             }
             _ => {
                 // Facet normals and vertex numbers were consumed above; anything else is not STL.
-                if parse_f64(tok).is_some() {
+                if text::parse_f64(tok).is_some() {
                     continue; // the three numbers after `facet normal`
                 }
                 return err(line, format!("unexpected `{}`", word(tok)));
@@ -323,6 +325,10 @@ fn keyword(tok: &[u8]) -> &[u8] {
         b"vertex",
         b"endloop",
     ];
+    // Most tokens are numbers, and most numbers are shorter or longer than any keyword.
+    if !(4..=8).contains(&tok.len()) {
+        return tok;
+    }
     WORDS
         .iter()
         .find(|w| w.eq_ignore_ascii_case(tok))
@@ -330,20 +336,12 @@ fn keyword(tok: &[u8]) -> &[u8] {
         .unwrap_or(tok)
 }
 
-fn parse_f64(token: &[u8]) -> Option<f64> {
-    std::str::from_utf8(token).ok()?.parse().ok()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::Limits;
 
     fn cx() -> ReadContext {
-        ReadContext {
-            root: ".".into(),
-            limits: Limits::default(),
-        }
+        ReadContext::for_tests()
     }
 
     fn binary(tris: &[[[f32; 3]; 3]], header: &[u8]) -> Vec<u8> {
@@ -419,7 +417,33 @@ mod tests {
         assert!(parse(b"hello", &cx()).unwrap_err().0.contains("not an STL"));
         let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
         png.resize(500, 7);
-        assert!(parse(&png, &cx()).unwrap_err().0.contains("another format"));
+        assert!(parse(&png, &cx())
+            .unwrap_err()
+            .0
+            .contains("looks like a PNG image, not an STL file"));
+    }
+
+    /// UTF-16 text is named; a binary header that happens to start with the same two bytes
+    /// (`FF FE`) is still binary: 2 facets and 3 bytes of padding, read with a note.
+    #[test]
+    fn utf16_text_is_named_but_a_binary_header_may_start_like_it() {
+        let text: Vec<u8> = "solid x\nendsolid x\n"
+            .encode_utf16()
+            .flat_map(u16::to_le_bytes)
+            .collect();
+        let mut utf16 = vec![0xFF, 0xFE];
+        utf16.extend(&text);
+        let e = parse(&utf16, &cx()).unwrap_err().0;
+        assert!(e.contains("UTF-16"), "{e}");
+        let mut b = binary(&[TRI, TRI], b"\xff\xfe binary");
+        b.extend(b"\n\n\n");
+        let m = parse(&b, &cx()).unwrap();
+        assert_eq!(m.triangles.len(), 2);
+        assert!(
+            m.notes[0].contains("3 byte(s) after the 2 triangles"),
+            "{:?}",
+            m.notes
+        );
     }
 
     #[test]

@@ -70,6 +70,18 @@ pub fn bounding_box<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> Optio
     bbox
 }
 
+/// A tiny deterministic xorshift generator of 64-bit words for the unit tests: no dependency, no
+/// flakiness.
+#[cfg(test)]
+pub(crate) fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

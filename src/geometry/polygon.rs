@@ -355,11 +355,9 @@ mod tests {
 
     #[test]
     fn convex_quad_is_a_fan() {
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
         ];
         assert_eq!(
             split(&[0, 1, 2, 3], &p),
@@ -370,11 +368,9 @@ mod tests {
     #[test]
     fn clockwise_quad_keeps_its_winding() {
         // Same square listed clockwise: the fan keeps the stored order (winding is the file's).
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 0.0],
         ];
         let (t, s) = split(&[0, 1, 2, 3], &p);
         assert_eq!(s, Split::Fan);
@@ -430,11 +426,9 @@ mod tests {
 
     #[test]
     fn degenerate_inputs_fall_back_to_a_fan() {
+        #[rustfmt::skip]
         let collinear = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [2.0, 0.0, 0.0],
-            [3.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0],
         ];
         assert_eq!(split(&[0, 1, 2, 3], &collinear).1, Split::Fallback);
         let same = [[1.0, 1.0, 1.0]; 5];
@@ -463,11 +457,9 @@ mod tests {
     #[test]
     fn self_intersecting_polygons_give_n_minus_2_triangles() {
         // Bowtie quad and a pentagram (all turns left, winding twice).
+        #[rustfmt::skip]
         let bowtie = [
-            [0.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0],
         ];
         assert_eq!(split(&[0, 1, 2, 3], &bowtie).0.len(), 2);
         let star: Vec<[f64; 3]> = (0..5)
@@ -484,12 +476,9 @@ mod tests {
     #[test]
     fn collinear_corners_avoid_zero_area_triangles() {
         // Square with midpoints on two edges: a fan from vertex 0 would make zero-area triangles.
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [2.0, 0.0, 0.0],
-            [2.0, 2.0, 0.0],
-            [0.0, 2.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0],
             [0.0, 1.0, 0.0],
         ];
         let (t, _) = split(&[0, 1, 2, 3, 4, 5], &p);
@@ -539,14 +528,8 @@ mod tests {
 
     #[test]
     fn many_random_polygons_terminate_with_n_minus_2() {
-        // A tiny deterministic generator: no dependency, no flakiness.
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed % 7) as f64 - 3.0
-        };
+        let mut bits = super::super::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut rnd = || (bits() % 7) as f64 - 3.0;
         for n in 3..40 {
             for _ in 0..20 {
                 let p: Vec<[f64; 3]> = (0..n).map(|_| [rnd(), rnd(), rnd() * 0.0]).collect();

@@ -8,17 +8,20 @@
 //! 3. walk the **fan** of every corner (faces around its vertex linked through manifold edges): a vertex
 //!    with more than one fan is non-manifold; fans also pair the border edges at each vertex, which
 //!    traces the **holes** on the undirected border;
-//! 4. per component: V, E, F, chi, holes, genus; per shell (closed, manifold component): volume, then
-//!    nesting depth, role and orientation.
+//! 4. per component: V, E, F, chi, holes, genus;
+//! 5. the pairs of faces that meet ([`super::intersect`]), within and between components;
+//! 6. per shell (closed, manifold component): volume, then nesting depth among the shells it does not
+//!    meet, role and orientation.
 //!
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
-use super::built::{build, Built};
+use super::built::{build, cross2, zero_area_bound, Built};
+use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::geometry::{bounding_box, by_position, cross, dist2, dot, norm2, normal, sub};
+use crate::geometry::{bounding_box, by_position, cross, dist2, dot, sub};
 use crate::mesh::Mesh;
 
 const UNSET: u32 = u32::MAX;
@@ -64,14 +67,20 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     a.duplicate_faces = count_duplicates(table);
 
     // 2. Patches with orientation parity, then components.
-    let patches = walk_patches(table);
+    let mut patches = walk_patches(table);
     let component_of_patch = join_patches(table, &patches, &built.source);
     let component_count = component_of_patch
         .iter()
         .map(|&c| c as usize + 1)
         .max()
         .unwrap_or(0);
-    let component_of = |t: u32| component_of_patch[patches.of_face[t as usize] as usize] as usize;
+    // Each face's patch becomes its component, in place: the walks below, the search for faces
+    // that meet and a later repair read it.
+    let mut component = std::mem::take(&mut patches.of_face);
+    for c in &mut component {
+        *c = component_of_patch[*c as usize];
+    }
+    let component_of = |t: u32| component[t as usize] as usize;
 
     let mut components = vec![Component::default(); component_count];
     for c in &mut components {
@@ -123,19 +132,32 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     }
     a.euler = used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
 
+    // 5. Faces that meet: within a component, between components.
+    a.intersections = options.intersections.map(|search| {
+        let component_of = |t: u32| component[t as usize];
+        intersect_table(
+            points,
+            table,
+            &component_of,
+            zero_cross2,
+            Some(&built.source),
+            &search,
+        )
+    });
+    let meeting: &[[u32; 2]] = a
+        .intersections
+        .as_ref()
+        .map_or(&[], |i| i.component_pairs.as_slice());
+
+    // 6. Shells: volume, then nesting among the shells that do not meet.
     let faces = Faces {
         table,
         points,
         patches: &patches,
     };
-    a.shells = shells(&faces, &component_of, &components, &fans.fans);
+    a.shells = shells(&faces, &component_of, &components, &fans.fans, meeting);
     a.components = components;
     let manifold = a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0;
-    // Each face's patch becomes its component, in place.
-    let mut component = patches.of_face;
-    for c in &mut component {
-        *c = component_of_patch[*c as usize];
-    }
     (
         a,
         Built {
@@ -495,6 +517,7 @@ fn shells(
     component_of: &impl Fn(u32) -> usize,
     components: &[Component],
     fans: &[(u32, u32)],
+    meeting: &[[u32; 2]],
 ) -> Vec<Shell> {
     let mut shell_of = vec![UNSET; components.len()];
     let mut shells: Vec<Shell> = Vec::new();
@@ -582,6 +605,18 @@ fn shells(
         }
     }
 
+    // The shells each shell meets (both components of a meeting pair are shells).
+    for &[a, b] in meeting {
+        let (sa, sb) = (shell_of[a as usize], shell_of[b as usize]);
+        if sa != UNSET && sb != UNSET {
+            shells[sa as usize].meets.push(sb as usize);
+            shells[sb as usize].meets.push(sa as usize);
+        }
+    }
+    for shell in &mut shells {
+        shell.meets.sort_unstable();
+    }
+
     let depth = if shells.len() > 1 {
         // Faces of each shell, by a counting sort on the shell.
         let mut start = vec![0u32; shells.len() + 1];
@@ -611,7 +646,9 @@ fn shells(
                 faces: &list[start[i] as usize..start[i + 1] as usize],
             })
             .collect();
-        depths(faces.table, faces.points, &geometry)
+        // A shell that meets another has no depth against it: crossing, neither is inside.
+        let apart = |a: usize, b: usize| shells[a].meets.binary_search(&b).is_err();
+        depths(faces.table, faces.points, &geometry, &apart)
     } else {
         vec![0; shells.len()]
     };
@@ -681,18 +718,6 @@ pub(crate) fn is_flat(volume: f64, bbox: &[[f64; 3]; 2]) -> bool {
     volume.abs() <= 1e-12 * diagonal.powi(3)
 }
 
-/// The largest [`cross2`] of a zero-area face in a mesh with this bounding box: a face's area is at
-/// most 1e-12 x (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`.
-pub(crate) fn zero_area_bound(bbox: Option<[[f64; 3]; 2]>) -> f64 {
-    let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
-    (2e-12 * diagonal2).powi(2)
-}
-
-/// `|(b - a) x (c - a)|^2`: four times the squared area of triangle `a b c`.
-pub(crate) fn cross2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    norm2(normal(a, b, c))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -704,30 +729,20 @@ mod tests {
         )
     }
 
+    #[rustfmt::skip]
     const CUBE_POINTS: [[f64; 3]; 8] = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 1.0, 1.0],
-        [0.0, 1.0, 1.0],
+        [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0],
     ];
     /// Unit cube, counterclockwise seen from outside.
+    #[rustfmt::skip]
     const CUBE: [[u32; 3]; 12] = [
-        [0, 2, 1],
-        [0, 3, 2],
-        [4, 5, 6],
-        [4, 6, 7],
-        [0, 1, 5],
-        [0, 5, 4],
-        [1, 2, 6],
-        [1, 6, 5],
-        [2, 3, 7],
-        [2, 7, 6],
-        [3, 0, 4],
-        [3, 4, 7],
+        [0, 2, 1], [0, 3, 2], // z = 0
+        [4, 5, 6], [4, 6, 7], // z = 1
+        [0, 1, 5], [0, 5, 4], // y = 0
+        [1, 2, 6], [1, 6, 5], // x = 1
+        [2, 3, 7], [2, 7, 6], // y = 1
+        [3, 0, 4], [3, 4, 7], // x = 0
     ];
 
     /// Cube: V 8, E 18, F 12, chi 2, genus 0, one outward solid of volume 1.
@@ -749,11 +764,9 @@ mod tests {
     /// disk (chi 1, one hole, genus 0); vertex 0 has two fans.
     #[test]
     fn bowtie() {
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 0.0, 0.0],
             [-1.0, -1.0, 0.0],
         ];
         let a = run(&p, &[[0, 1, 2], [0, 3, 4]]);
@@ -794,11 +807,9 @@ mod tests {
     /// (each has three fans); one component that is not manifold, so no genus.
     #[test]
     fn three_faces_on_an_edge() {
+        #[rustfmt::skip]
         let p = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.5, 1.0, 0.0],
-            [0.5, -1.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.5, -1.0, 0.0],
             [0.5, 0.0, 1.0],
         ];
         let a = run(&p, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]]);

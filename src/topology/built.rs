@@ -22,6 +22,7 @@ use rayon::prelude::*;
 
 use super::Options;
 use crate::corner_table::{Apexes, Bounds, CornerTable};
+use crate::geometry::{dist2, norm2, normal};
 use crate::mesh::Mesh;
 use crate::weld::{weld, weld_parallel, Welded, INVALID};
 
@@ -79,6 +80,18 @@ impl FaceKind {
             FaceKind::Table
         }
     }
+}
+
+/// The largest [`cross2`] of a zero-area face in a mesh with this bounding box: a face's area is at
+/// most 1e-12 x (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`.
+pub(crate) fn zero_area_bound(bbox: Option<[[f64; 3]; 2]>) -> f64 {
+    let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
+    (2e-12 * diagonal2).powi(2)
+}
+
+/// `|(b - a) x (c - a)|^2`: four times the squared area of triangle `a b c`.
+pub(crate) fn cross2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    norm2(normal(a, b, c))
 }
 
 /// The welded corners of an input face (`INVALID` for an index the weld does not know).

@@ -24,11 +24,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use rayon::prelude::*;
 
-use super::analyse::{analyse_keeping, cross2, zero_area_bound};
-use super::Built;
-use super::Options;
+use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
-use crate::mesh::Mesh;
 use tree::{Box3, Tree, Visit};
 
 /// What the test reads of a mesh: the welded points, the Corner Table of the faces the analysis
@@ -116,34 +113,46 @@ impl Intersections {
     }
 }
 
-/// The faces that meet in `mesh` after the analysis's weld (`options`), with the faces, pairs and
-/// components numbered as in the mesh and in [`crate::Analysis::components`]. Welds, leaves out
-/// invalid and degenerate faces and builds the table and components exactly as the analysis does;
-/// zero-area faces are left out.
-pub fn intersections(mesh: &Mesh, options: &Options, search: &Search) -> Intersections {
-    let (analysis, built) = analyse_keeping(mesh, options);
-    intersections_built(&built, analysis.bbox, search)
-}
-
-/// [`intersections`] of a mesh already analysed, from what the analysis built and its bounding box
+/// The faces that meet in a mesh already analysed (as the analysis finds them, with `search`),
+/// from what the analysis built and its bounding box
 /// ([`crate::Analysis::bbox`], which sets the zero-area threshold).
 pub fn intersections_built(
     built: &Built,
     bbox: Option<[[f64; 3]; 2]>,
     search: &Search,
 ) -> Intersections {
-    let bound = zero_area_bound(bbox);
-    let points = &built.welded.positions;
-    let triangles = built.table.triangles();
+    intersect_table(
+        &built.welded.positions,
+        &built.table,
+        &|t| built.component[t as usize],
+        zero_area_bound(bbox),
+        Some(&built.source),
+        search,
+    )
+}
+
+/// The faces of `table` (over `points`) that meet, leaving out its zero-area faces: those whose
+/// [`cross2`] is at most `zero_bound` ([`zero_area_bound`] of the mesh's box). `component` and
+/// `number` as in [`Surface`].
+pub(crate) fn intersect_table(
+    points: &[[f64; 3]],
+    table: &CornerTable,
+    component: &(dyn Fn(u32) -> u32 + Sync),
+    zero_bound: f64,
+    number: Option<&[u32]>,
+    search: &Search,
+) -> Intersections {
+    let triangles = table.triangles();
+    let left_out = |t: u32| {
+        let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+        cross2(a, b, c) <= zero_bound
+    };
     let surface = Surface {
         points,
-        table: &built.table,
-        component: &|t| built.component[t as usize],
-        left_out: &|t| {
-            let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-            cross2(a, b, c) <= bound
-        },
-        number: Some(&built.source),
+        table,
+        component,
+        left_out: &left_out,
+        number,
     };
     intersect(&surface, search)
 }

@@ -11,17 +11,28 @@ mod places;
 
 pub use analyse::{analyse, analyse_keeping};
 pub use built::{build, Built, LeftOut};
-pub use intersect::{
-    intersect, intersections, intersections_built, Intersections, Search, Surface,
-};
+pub use intersect::{intersect, intersections_built, Intersections, Search, Surface};
 pub use places::{places, Places, NO_SHELL};
 
-/// How the analysis [welds](crate::definitions#welding) vertices.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// How the analysis [welds](crate::definitions#welding) vertices, and whether it looks for
+/// faces that [meet](crate::definitions#intersections).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Options {
     /// `0.0`: weld only exactly equal positions (-0.0 equals 0.0). Otherwise positions closer than this
     /// distance are one vertex.
     pub weld_tolerance: f64,
+    /// How far the search for faces that meet goes; `None`: no search (the counts are undefined).
+    pub intersections: Option<Search>,
+}
+
+impl Default for Options {
+    /// Exact welding, and the search for faces that meet, as a scan does by default.
+    fn default() -> Options {
+        Options {
+            weld_tolerance: 0.0,
+            intersections: Some(Search::default()),
+        }
+    }
 }
 
 /// Every topological fact about one mesh (the report's columns without the file columns).
@@ -62,6 +73,9 @@ pub struct Analysis {
     pub components: Vec<Component>,
     /// Closed manifold components (and pinched solids, [`Shell::pinched`]), in component order.
     pub shells: Vec<Shell>,
+    /// The faces that meet (faces numbered as in the mesh, components as in
+    /// [`Analysis::components`]); `None` when the options asked for no search.
+    pub intersections: Option<Intersections>,
 }
 
 /// A maximal set of faces connected through shared edges of any valence
@@ -87,6 +101,20 @@ pub struct Component {
     pub euler: i64,
     /// `(2 - chi - holes) / 2`; `None` unless manifold and orientable.
     pub genus: Option<i64>,
+}
+
+#[cfg(test)]
+impl Component {
+    /// An orientable, consistently wound component with `holes` boundary loops (for the tests of
+    /// what reads an analysis).
+    pub(crate) fn with_holes(holes: usize) -> Component {
+        Component {
+            holes,
+            orientable: true,
+            oriented: true,
+            ..Component::default()
+        }
+    }
 }
 
 /// Whether a shell bounds material from outside or a void inside material
@@ -129,6 +157,9 @@ pub struct Shell {
     pub inside_out: bool,
     /// Bounding box of the shell's vertices.
     pub bbox: [[f64; 3]; 2],
+    /// The other shells (indices into [`Analysis::shells`]) that this one meets: faces of the two
+    /// cross or touch. Nesting ignores them (no depth from a shell it crosses).
+    pub meets: Vec<usize>,
 }
 
 impl Analysis {
@@ -158,6 +189,23 @@ impl Analysis {
     /// Closed, manifold components (the pinched solids in [`Analysis::shells`] left out).
     pub fn shell_count(&self) -> usize {
         self.shells.iter().filter(|s| !s.pinched).count()
+    }
+
+    /// Pairs of faces of one component that meet; `None` without a search.
+    pub fn self_intersections(&self) -> Option<usize> {
+        self.intersections.as_ref().map(|i| i.self_intersections)
+    }
+
+    /// Pairs of components with faces that meet; `None` without a search.
+    pub fn intersecting_components(&self) -> Option<usize> {
+        self.intersections
+            .as_ref()
+            .map(Intersections::intersecting_components)
+    }
+
+    /// Pairs of shells that meet, whose overlap `volume` counts twice.
+    pub fn overlapping_shells(&self) -> usize {
+        self.shells.iter().map(|s| s.meets.len()).sum::<usize>() / 2
     }
 
     pub fn solids(&self) -> usize {

@@ -42,16 +42,18 @@ const DIRECTIONS: [[f64; 3]; 6] = [
 /// touch, which is not containment).
 const ATTEMPTS: usize = 12;
 
-/// The depth of every shell.
+/// The depth of every shell: how many shells contain it, among those it is `apart` from (shells
+/// whose surfaces meet are never inside one another: parity says nothing about crossing shells).
 pub(crate) fn depths(
     table: &CornerTable,
     points: &[[f64; 3]],
     shells: &[ShellGeometry],
+    apart: &dyn Fn(usize, usize) -> bool,
 ) -> Vec<usize> {
     let mut depth = vec![0usize; shells.len()];
     let boxes: Vec<[[f64; 3]; 2]> = shells.iter().map(|s| s.bbox).collect();
     boxed_pairs(&boxes, |inner, outer| {
-        if contains(table, points, &shells[outer], &shells[inner]) {
+        if apart(inner, outer) && contains(table, points, &shells[outer], &shells[inner]) {
             depth[inner] += 1;
         }
     });
@@ -171,7 +173,7 @@ fn point_in_solid(
             }) {
                 continue;
             }
-            match segment_meets_triangle(q, far, a, b, c) {
+            match segment_meets_triangle([q, far], [a, b, c]) {
                 Meeting::Miss => {}
                 Meeting::Cross => crossings += 1,
                 Meeting::Graze => continue 'directions,
@@ -196,13 +198,7 @@ enum Meeting {
     OnSurface,
 }
 
-fn segment_meets_triangle(
-    q: [f64; 3],
-    far: [f64; 3],
-    a: [f64; 3],
-    b: [f64; 3],
-    c: [f64; 3],
-) -> Meeting {
+fn segment_meets_triangle([q, far]: [[f64; 3]; 2], [a, b, c]: [[f64; 3]; 3]) -> Meeting {
     let s_near = orient3d(p3(a), p3(b), p3(c), p3(q));
     let s_far = orient3d(p3(a), p3(b), p3(c), p3(far));
     if s_near == 0.0 && s_far == 0.0 {
@@ -210,7 +206,7 @@ fn segment_meets_triangle(
         // means running along the surface.
         return if in_triangle_coplanar(q, a, b, c) {
             Meeting::OnSurface
-        } else if coplanar_segment_meets_triangle(q, far, a, b, c) {
+        } else if coplanar_segment_meets_triangle([q, far], [a, b, c]) {
             Meeting::Graze
         } else {
             Meeting::Miss
@@ -250,13 +246,7 @@ fn segment_meets_triangle(
 /// Whether the segment `q far`, lying in the plane of `a b c`, touches the closed triangle (exact, in
 /// the projection on the plane's dominant axis; a flat triangle is projected on z, which can only err
 /// towards "touches").
-fn coplanar_segment_meets_triangle(
-    q: [f64; 3],
-    far: [f64; 3],
-    a: [f64; 3],
-    b: [f64; 3],
-    c: [f64; 3],
-) -> bool {
+fn coplanar_segment_meets_triangle([q, far]: [[f64; 3]; 2], [a, b, c]: [[f64; 3]; 3]) -> bool {
     let (i, j) = dominant_axes(a, b, c);
     let p2 = |p: [f64; 3]| Coord { x: p[i], y: p[j] };
     let (q2, f2) = (p2(q), p2(far));
@@ -324,7 +314,7 @@ mod tests {
     /// Segments against the triangle `(0,0,0) (1,0,0) (0,1,0)` in the plane z = 0.
     #[test]
     fn segment_meetings() {
-        let meet = |q: [f64; 3], far: [f64; 3]| segment_meets_triangle(q, far, A, B, C);
+        let meet = |q: [f64; 3], far: [f64; 3]| segment_meets_triangle([q, far], [A, B, C]);
         // Through the interior point (0.25, 0.25, 0), from below to above.
         assert_eq!(meet([0.25, 0.25, -1.0], [0.25, 0.25, 1.0]), Meeting::Cross);
         // Through (0.5, 0, 0), on edge A B.
@@ -363,14 +353,8 @@ mod tests {
         let far = [0, 1, 2].map(|k| q[k] + reach * DIRECTIONS[0][k]);
         let (y, z) = (far[1] / 4.0, far[2] / 4.0);
         let edge = [[2.25, y, -2.0], [2.25, y, 2.0], [2.25, y - 2.0, 2.0]];
-        assert_eq!(
-            segment_meets_triangle(q, far, edge[0], edge[1], edge[2]),
-            Meeting::Graze
-        );
+        assert_eq!(segment_meets_triangle([q, far], edge), Meeting::Graze);
         let corner = [[2.25, y, z], [2.25, y - 2.0, z], [2.25, y - 2.0, z - 2.0]];
-        assert_eq!(
-            segment_meets_triangle(q, far, corner[0], corner[1], corner[2]),
-            Meeting::Graze
-        );
+        assert_eq!(segment_meets_triangle([q, far], corner), Meeting::Graze);
     }
 }

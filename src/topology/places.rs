@@ -29,6 +29,9 @@ pub struct Places {
     pub triangles: Vec<[u32; 3]>,
     /// Per face of [`Places::triangles`]: it belongs to an inside-out shell.
     pub inside_out: Vec<bool>,
+    /// Per face of [`Places::triangles`]: it meets another face (crosses or touches it where the
+    /// mesh does not join them); all `false` when the analysis did not look.
+    pub meets: Vec<bool>,
     /// Per face of [`Places::triangles`]: the index in [`Places::shells`] of the shell it belongs
     /// to, or [`NO_SHELL`] when its component is not a shell.
     pub shell: Vec<u32>,
@@ -147,8 +150,13 @@ pub fn places(built: &Built, analysis: &Analysis) -> Places {
         .map(|&s| s != NO_SHELL && analysis.shells[s as usize].inside_out)
         .collect();
 
+    let meets = match &analysis.intersections {
+        Some(i) => built.source.iter().map(|&s| i.involves(s)).collect(),
+        None => vec![false; faces],
+    };
     Places {
         points: built.welded.positions.clone(),
+        meets,
         triangles: table.triangles().to_vec(),
         inside_out,
         shell,
@@ -189,11 +197,9 @@ mod tests {
     /// A tetrahedron wound inward beside an outward one: the first shell's four faces are marked.
     #[test]
     fn inside_out_faces_follow_their_shell() {
+        #[rustfmt::skip]
         let mut positions = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
         ];
         positions.extend(positions.clone().iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
         let outward = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
@@ -209,11 +215,9 @@ mod tests {
     /// A bowtie (two triangles touching at vertex 0) and three faces on edge 0-1.
     #[test]
     fn bowtie_and_fin_are_marked() {
+        #[rustfmt::skip]
         let positions = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 0.0, 0.0],
             [-1.0, -1.0, 0.0],
         ];
         let bowtie = check(&Mesh::new(positions.clone(), vec![[0, 1, 2], [0, 3, 4]]));
@@ -227,11 +231,9 @@ mod tests {
     /// 1->2 too): the one manifold edge is inconsistent; the four outer edges are borders.
     #[test]
     fn a_flipped_neighbour_marks_the_shared_edge() {
+        #[rustfmt::skip]
         let positions = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [1.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0],
         ];
         let p = check(&Mesh::new(positions, vec![[0, 1, 2], [1, 2, 3]]));
         assert_eq!(p.inconsistent_edges, [[1, 2]]);

@@ -50,7 +50,8 @@ fn component_name(c: ComponentType) -> &'static str {
     }
 }
 
-fn type_name(t: Type) -> &'static str {
+/// The name glTF's JSON gives an accessor type (`VEC3`, ...).
+pub(crate) fn type_name(t: Type) -> &'static str {
     match t {
         Type::Scalar => "SCALAR",
         Type::Vec2 => "VEC2",
@@ -234,32 +235,7 @@ impl Data<'_> {
                     "{what}: sparse accessor has {n} values for {count} elements"
                 )));
             }
-            let index_type = match sparse.indices.component_type {
-                Checked::Valid(t) => t.0,
-                Checked::Invalid => {
-                    return Err(err(format!(
-                        "{what}: sparse indices have an invalid componentType"
-                    )))
-                }
-            };
-            let indices = self.strided(
-                sparse.indices.buffer_view.value(),
-                sparse.indices.byte_offset.0,
-                n,
-                index_type.size(),
-                false,
-                what,
-            )?;
-            let values = self.strided(
-                sparse.values.buffer_view.value(),
-                sparse.values.byte_offset.0,
-                n,
-                size,
-                false,
-                what,
-            )?;
-            for i in 0..n {
-                let at = decode_index(index_type, indices.element(i)) as usize;
+            for (at, value) in self.sparse(sparse, n, size, what)? {
                 let slot = out
                     .get_mut(start + at)
                     .filter(|_| at < count)
@@ -268,10 +244,47 @@ impl Data<'_> {
                             "{what}: sparse index {at} is out of range ({count} elements)"
                         ))
                     })?;
-                *slot = decode(values.element(i));
+                *slot = decode(value);
             }
         }
         Ok(())
+    }
+
+    /// The first `n` replacements of a sparse accessor whose elements are `size` bytes: for each,
+    /// the index of the element it replaces (not yet checked against the count) and its bytes.
+    fn sparse(
+        &self,
+        sparse: &json::accessor::sparse::Sparse,
+        n: usize,
+        size: usize,
+        what: &str,
+    ) -> Result<impl Iterator<Item = (usize, &[u8])>, ReadError> {
+        let Checked::Valid(index_type) = sparse.indices.component_type else {
+            return Err(err(format!(
+                "{what}: sparse indices have an invalid componentType"
+            )));
+        };
+        let index_type = index_type.0;
+        let indices = self.strided(
+            sparse.indices.buffer_view.value(),
+            sparse.indices.byte_offset.0,
+            n,
+            index_type.size(),
+            false,
+            what,
+        )?;
+        let values = self.strided(
+            sparse.values.buffer_view.value(),
+            sparse.values.byte_offset.0,
+            n,
+            size,
+            false,
+            what,
+        )?;
+        Ok((0..n).map(move |i| {
+            let at = decode_index(index_type, indices.element(i)) as usize;
+            (at, values.element(i))
+        }))
     }
 
     /// The elements of any accessor as packed bytes, `size` bytes each (strides removed, sparse
@@ -307,36 +320,13 @@ impl Data<'_> {
             let n = usize::try_from(sparse.count.0)
                 .unwrap_or(usize::MAX)
                 .min(count);
-            let Checked::Valid(index_type) = sparse.indices.component_type else {
-                return Err(err(format!(
-                    "{what}: sparse indices have an invalid componentType"
-                )));
-            };
-            let index_type = index_type.0;
-            let indices = self.strided(
-                sparse.indices.buffer_view.value(),
-                sparse.indices.byte_offset.0,
-                n,
-                index_type.size(),
-                false,
-                what,
-            )?;
-            let values = self.strided(
-                sparse.values.buffer_view.value(),
-                sparse.values.byte_offset.0,
-                n,
-                size,
-                false,
-                what,
-            )?;
-            for i in 0..n {
-                let at = decode_index(index_type, indices.element(i)) as usize;
+            for (at, value) in self.sparse(sparse, n, size, what)? {
                 let slot = out.get_mut(at * size..(at + 1) * size).ok_or_else(|| {
                     err(format!(
                         "{what}: sparse index {at} is out of range ({count} elements)"
                     ))
                 })?;
-                slot.copy_from_slice(values.element(i));
+                slot.copy_from_slice(value);
             }
         }
         Ok(out)

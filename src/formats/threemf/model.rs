@@ -24,14 +24,13 @@ use quick_xml::events::{BytesStart, Event};
 use rustc_hash::FxHashMap;
 
 use super::super::{Limits, ReadError};
-use super::package::{self, Relationship};
+use super::package;
 use super::xml::{Step, Xml};
 
 /// The 3MF core namespace.
 pub const CORE: &[u8] = b"http://schemas.microsoft.com/3dmanufacturing/core/2015/02";
 /// The production extension (`p:path`, `p:UUID`).
 pub const PRODUCTION: &[u8] = b"http://schemas.microsoft.com/3dmanufacturing/production/2015/06";
-const RELATIONSHIPS: &[u8] = b"http://schemas.openxmlformats.org/package/2006/relationships";
 
 /// Extensions a file may require that leave the meaning of its `<mesh>` elements as the core
 /// specification says: materials and properties, production, beam lattices (and their balls),
@@ -152,6 +151,28 @@ pub struct MeshData {
     pub unknown: u64,
 }
 
+impl MeshData {
+    /// Adds a triangle (and its properties, when kept), counting it against the file's limit.
+    fn push_triangle(
+        &mut self,
+        t: [u32; 3],
+        properties: [u32; 4],
+        totals: &mut Totals,
+        settings: &Settings,
+        part: &str,
+    ) -> Result<(), ReadError> {
+        totals.triangles += 1;
+        if totals.triangles > settings.limits.max_triangles {
+            return Err(over_limit(part, "triangles", settings.limits));
+        }
+        self.triangles.push(t);
+        if settings.keep {
+            self.properties.push(properties);
+        }
+        Ok(())
+    }
+}
+
 /// What an object is made of.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Content {
@@ -265,14 +286,7 @@ pub fn parse<R: BufRead>(
                         else {
                             return Ok(false);
                         };
-                        totals.triangles += 1;
-                        if totals.triangles > settings.limits.max_triangles {
-                            return Err(over_limit(&part, "triangles", settings.limits));
-                        }
-                        m.triangles.push(t);
-                        if settings.keep {
-                            m.properties.push(properties);
-                        }
+                        m.push_triangle(t, properties, totals, settings, &part)?;
                         Ok(true)
                     })?;
                 }
@@ -341,14 +355,7 @@ pub fn parse<R: BufRead>(
         if core && parent == Some(Node::Triangles) && local == b"triangle" {
             let m = mesh.as_mut().expect("triangles are inside a mesh");
             let (t, properties) = triangle(e, &xml, m.triangles.len(), settings.keep)?;
-            totals.triangles += 1;
-            if totals.triangles > settings.limits.max_triangles {
-                return Err(over_limit(&part, "triangles", settings.limits));
-            }
-            m.triangles.push(t);
-            if settings.keep {
-                m.properties.push(properties);
-            }
+            m.push_triangle(t, properties, totals, settings, &part)?;
             if start {
                 xml.skip(&mut buf)?;
             }
@@ -591,14 +598,7 @@ fn read_object<R: BufRead>(e: &BytesStart, xml: &Xml<R>) -> Result<Open, ReadErr
             return Ok(());
         }
         match local {
-            b"id" => {
-                id = Some(index(value).ok_or_else(|| {
-                    ReadError::new(format!(
-                        "part {part} has an object whose id `{}` is not a whole number: the file is damaged - re-export it",
-                        String::from_utf8_lossy(value)
-                    ))
-                })?)
-            }
+            b"id" => id = Some(whole(value, part, "an object", "id")?),
             b"name" => name = Some(String::from_utf8_lossy(value).into_owned()),
             b"type" => {
                 kind = Kind::ALL
@@ -615,11 +615,7 @@ fn read_object<R: BufRead>(e: &BytesStart, xml: &Xml<R>) -> Result<Open, ReadErr
         }
         Ok(())
     })?;
-    let id = id.ok_or_else(|| {
-        ReadError::new(format!(
-            "part {part} has an object without an id: the file is damaged - re-export it"
-        ))
-    })?;
+    let id = required(id, part, "an object", "id")?;
     Ok(Open {
         id,
         name,
@@ -641,14 +637,7 @@ fn reference<R: BufRead>(
     let mut sign = Sign::Positive;
     xml.each_attribute(e, |ns, local, value| {
         match (ns, local) {
-            (None, b"objectid") => {
-                object = Some(index(value).ok_or_else(|| {
-                    ReadError::new(format!(
-                        "part {part} has {what} whose objectid `{}` is not a whole number: the file is damaged - re-export it",
-                        String::from_utf8_lossy(value)
-                    ))
-                })?)
-            }
+            (None, b"objectid") => object = Some(whole(value, part, what, "objectid")?),
             (None, b"transform") => {
                 sign = transform_sign(value).map_err(|why| {
                     ReadError::new(format!(
@@ -667,12 +656,27 @@ fn reference<R: BufRead>(
         }
         Ok(())
     })?;
-    let object = object.ok_or_else(|| {
-        ReadError::new(format!(
-            "part {part} has {what} without an objectid: the file is damaged - re-export it"
-        ))
-    })?;
+    let object = required(object, part, what, "objectid")?;
     Ok(Reference { object, path, sign })
+}
+
+/// The index in attribute `name` of `what` (`an object`, `a build item`, ...), or why it is none.
+fn whole(value: &[u8], part: &str, what: &str, name: &str) -> Result<u32, ReadError> {
+    index(value).ok_or_else(|| {
+        ReadError::new(format!(
+            "part {part} has {what} whose {name} `{}` is not a whole number: the file is damaged - re-export it",
+            String::from_utf8_lossy(value)
+        ))
+    })
+}
+
+/// Attribute `name` of `what`, which 3MF requires.
+fn required<T>(value: Option<T>, part: &str, what: &str, name: &str) -> Result<T, ReadError> {
+    value.ok_or_else(|| {
+        ReadError::new(format!(
+            "part {part} has {what} without an {name}: the file is damaged - re-export it"
+        ))
+    })
 }
 
 /// The sign of the determinant of a transform's 3x3 part (`m00 m01 m02 m10 m11 m12 m20 m21 m22`,
@@ -872,101 +876,24 @@ fn extra_name(ns: Option<&[u8]>, local: &[u8]) -> String {
     }
 }
 
-/// The relationships of the `.rels` part named `part` (bytes), their targets resolved against
-/// `source` (a key); an external target or one outside the package is refused.
-pub fn relationships<R: BufRead>(
-    bytes: R,
-    part: &str,
-    source: &str,
-) -> Result<Vec<Relationship>, ReadError> {
-    let part = part.to_owned();
-    let mut xml = Xml::new(bytes, &part);
-    let mut buf = Vec::new();
-    let mut out = Vec::new();
-    loop {
-        let (step, event) = xml.next(&mut buf)?;
-        if step == Step::Eof {
-            break;
-        }
-        let (Event::Start(e) | Event::Empty(e)) = &event else {
-            continue;
-        };
-        let ns = xml.namespace(e);
-        let is_relationship =
-            e.local_name().as_ref() == b"Relationship" && ns.is_none_or(|ns| ns == RELATIONSHIPS);
-        let (mut kind, mut target, mut external) = (String::new(), None, false);
-        xml.each_attribute(e, |ns, local, value| {
-            if ns.is_none() && is_relationship {
-                let text = String::from_utf8_lossy(value);
-                match local {
-                    b"Type" => kind = text.into_owned(),
-                    b"Target" => target = Some(text.into_owned()),
-                    b"TargetMode" => external = text.eq_ignore_ascii_case("external"),
-                    _ => {}
-                }
-            }
-            Ok(())
-        })?;
-        if !is_relationship {
-            continue;
-        }
-        let target = target.ok_or_else(|| {
-            ReadError::new(format!(
-                "part {part} has a relationship without a Target: the file is damaged - re-export it"
-            ))
-        })?;
-        if external {
-            return Err(ReadError::new(format!(
-                "part {part} has a relationship to `{target}` outside the package (TargetMode External): meshvet reads nothing outside the 3MF file - embed the part or remove the relationship"
-            )));
-        }
-        let target = package::resolve(&target, source).map_err(|why| {
-            ReadError::new(format!("part {part} has a relationship whose target {why}"))
-        })?;
-        out.push(Relationship { kind, target });
-    }
-    Ok(out)
-}
-
-/// The parts a secure-content keystore lists as encrypted (its `resourcedata` paths, as keys).
-pub fn keystore<R: BufRead>(bytes: R, part: &str) -> Result<Vec<String>, ReadError> {
-    let part = part.to_owned();
-    let mut xml = Xml::new(bytes, &part);
-    let mut buf = Vec::new();
-    let mut out = Vec::new();
-    loop {
-        let (step, event) = xml.next(&mut buf)?;
-        if step == Step::Eof {
-            break;
-        }
-        let (Event::Start(e) | Event::Empty(e)) = &event else {
-            continue;
-        };
-        let data = e.local_name().as_ref() == b"resourcedata";
-        xml.each_attribute(e, |ns, local, value| {
-            if data && ns.is_none() && local == b"path" {
-                out.push(package::key(&String::from_utf8_lossy(value)));
-            }
-            Ok(())
-        })?;
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn read(text: &str) -> Result<Model, ReadError> {
-        let limits = Limits::default();
-        let settings = Settings {
+    /// The settings of the root model part `/3D/3dmodel.model`, properties kept.
+    fn root_part(limits: &Limits) -> Settings<'_> {
+        Settings {
             key: "3d/3dmodel.model",
             name: "/3D/3dmodel.model",
             root: true,
             keep: true,
-            limits: &limits,
-        };
-        parse(text.as_bytes(), &settings, &mut Totals::default())
+            limits,
+        }
+    }
+
+    fn read(text: &str) -> Result<Model, ReadError> {
+        let limits = Limits::default();
+        parse(text.as_bytes(), &root_part(&limits), &mut Totals::default())
     }
 
     const HEAD: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
@@ -1060,13 +987,7 @@ mod tests {
             format!("{HEAD}<resources><object id=\"1\"><mesh><vertices>{v}</vertices><triangles>{t}</triangles></mesh></object></resources><build><item objectid=\"1\"/></build></model>")
         };
         let limits = Limits::default();
-        let settings = Settings {
-            key: "3d/3dmodel.model",
-            name: "/3D/3dmodel.model",
-            root: true,
-            keep: true,
-            limits: &limits,
-        };
+        let settings = root_part(&limits);
         let parse_buffered = |text: &str| {
             let source = std::io::BufReader::with_capacity(1 << 16, text.as_bytes());
             parse(source, &settings, &mut Totals::default()).unwrap()
@@ -1194,26 +1115,5 @@ mod tests {
         assert!(transform_sign(b"1 0 0 0 1 0 0 0 1 NaN 0 0").is_err());
         assert!(transform_sign(b"1 0 0 0 1 0 0 0 1 inf 0 0").is_err());
         assert!(transform_sign(b"1,0 0 0 0 1 0 0 0 1 0 0 0").is_err());
-    }
-
-    #[test]
-    fn relationships_resolve_and_refuse_outside_targets() {
-        let rels = br#"<?xml version="1.0"?><Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="r0" Type="T"/><Relationship Target="thumb.png" Id="r1" Type="U"/></Relationships>"#;
-        assert_eq!(
-            relationships(&rels[..], "/_rels/.rels", "").unwrap(),
-            [
-                Relationship {
-                    kind: "T".into(),
-                    target: "3d/3dmodel.model".into()
-                },
-                Relationship {
-                    kind: "U".into(),
-                    target: "thumb.png".into()
-                }
-            ]
-        );
-        let external = br#"<Relationships><Relationship Target="x.model" TargetMode="External" Type="T"/></Relationships>"#;
-        let e = relationships(&external[..], "/_rels/.rels", "").unwrap_err();
-        assert!(e.0.contains("External"), "{e}");
     }
 }

@@ -14,13 +14,15 @@
 //! an error at the declared size, because a declared size can lie.
 
 use std::fs::File;
-use std::io::{BufReader, Read};
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
+use quick_xml::events::Event;
 use rustc_hash::FxHashMap;
 use zip::{CompressionMethod, ZipArchive};
 
 use super::super::{Limits, ReadError};
+use super::xml::{io_message, Step, Xml};
 
 /// The largest declared ratio of inflated to stored bytes a part may have (over [`RATIO_FLOOR`]).
 /// Mesh text compresses about 5 to 20 to 1; the most regular parts seen in published packages
@@ -97,7 +99,7 @@ impl Package {
         let Some(reader) = self.open_part(key)? else {
             return Ok(Vec::new());
         };
-        super::model::keystore(BufReader::new(reader), &name)
+        keystore(BufReader::new(reader), &name)
     }
 
     /// The bytes of a part, inflated within the budget; `None` if there is no such part.
@@ -179,7 +181,7 @@ impl Package {
         let Some(reader) = self.open_part(rels)? else {
             return Ok(Vec::new());
         };
-        super::model::relationships(BufReader::new(reader), &name, source)
+        relationships(BufReader::new(reader), &name, source)
     }
 
     /// The key of the `.rels` part of `part` (`3d/3dmodel.model` -> `3d/_rels/3dmodel.model.rels`).
@@ -237,15 +239,6 @@ impl Read for PartReader<'_> {
         let n = self.inner.read(&mut buf[..room])?;
         self.left -= n as u64;
         Ok(n)
-    }
-}
-
-/// The message for an I/O error while inflating `part`.
-pub fn io_message(e: &std::io::Error, part: &str) -> String {
-    if e.kind() == std::io::ErrorKind::Other && e.get_ref().is_some() {
-        e.to_string()
-    } else {
-        format!("part /{part} cannot be inflated ({e}): the package is damaged - re-export it")
     }
 }
 
@@ -332,6 +325,91 @@ pub fn resolve(target: &str, source: &str) -> Result<String, String> {
     Ok(key(&segments.join("/")))
 }
 
+/// The namespace of a `.rels` part.
+const RELATIONSHIPS: &[u8] = b"http://schemas.openxmlformats.org/package/2006/relationships";
+
+/// The relationships of the `.rels` part named `part` (bytes), their targets resolved against
+/// `source` (a key); an external target or one outside the package is refused.
+pub fn relationships<R: BufRead>(
+    bytes: R,
+    part: &str,
+    source: &str,
+) -> Result<Vec<Relationship>, ReadError> {
+    let mut out = Vec::new();
+    each_element(bytes, part, |xml, e| {
+        let ns = xml.namespace(e);
+        let is_relationship =
+            e.local_name().as_ref() == b"Relationship" && ns.is_none_or(|ns| ns == RELATIONSHIPS);
+        let (mut kind, mut target, mut external) = (String::new(), None, false);
+        xml.each_attribute(e, |ns, local, value| {
+            if ns.is_none() && is_relationship {
+                let text = String::from_utf8_lossy(value);
+                match local {
+                    b"Type" => kind = text.into_owned(),
+                    b"Target" => target = Some(text.into_owned()),
+                    b"TargetMode" => external = text.eq_ignore_ascii_case("external"),
+                    _ => {}
+                }
+            }
+            Ok(())
+        })?;
+        if !is_relationship {
+            return Ok(());
+        }
+        let target = target.ok_or_else(|| {
+            ReadError::new(format!(
+                "part {part} has a relationship without a Target: the file is damaged - re-export it"
+            ))
+        })?;
+        if external {
+            return Err(ReadError::new(format!(
+                "part {part} has a relationship to `{target}` outside the package (TargetMode External): meshvet reads nothing outside the 3MF file - embed the part or remove the relationship"
+            )));
+        }
+        let target = resolve(&target, source).map_err(|why| {
+            ReadError::new(format!("part {part} has a relationship whose target {why}"))
+        })?;
+        out.push(Relationship { kind, target });
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Calls `visit` with every element (start or empty tag) of the XML part `part`, in order.
+fn each_element<R: BufRead>(
+    bytes: R,
+    part: &str,
+    mut visit: impl FnMut(&Xml<R>, &quick_xml::events::BytesStart) -> Result<(), ReadError>,
+) -> Result<(), ReadError> {
+    let part = part.to_owned();
+    let mut xml = Xml::new(bytes, &part);
+    let mut buf = Vec::new();
+    loop {
+        let (step, event) = xml.next(&mut buf)?;
+        if step == Step::Eof {
+            return Ok(());
+        }
+        if let Event::Start(e) | Event::Empty(e) = &event {
+            visit(&xml, e)?;
+        }
+    }
+}
+
+/// The parts a secure-content keystore lists as encrypted (its `resourcedata` paths, as keys).
+pub fn keystore<R: BufRead>(bytes: R, part: &str) -> Result<Vec<String>, ReadError> {
+    let mut out = Vec::new();
+    each_element(bytes, part, |xml, e| {
+        let data = e.local_name().as_ref() == b"resourcedata";
+        xml.each_attribute(e, |ns, local, value| {
+            if data && ns.is_none() && local == b"path" {
+                out.push(key(&String::from_utf8_lossy(value)));
+            }
+            Ok(())
+        })
+    })?;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -407,5 +485,26 @@ mod tests {
             "3d/_rels/3dmodel.model.rels"
         );
         assert_eq!(Package::rels_of("a.model"), "_rels/a.model.rels");
+    }
+
+    #[test]
+    fn relationships_resolve_and_refuse_outside_targets() {
+        let rels = br#"<?xml version="1.0"?><Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="r0" Type="T"/><Relationship Target="thumb.png" Id="r1" Type="U"/></Relationships>"#;
+        assert_eq!(
+            relationships(&rels[..], "/_rels/.rels", "").unwrap(),
+            [
+                Relationship {
+                    kind: "T".into(),
+                    target: "3d/3dmodel.model".into()
+                },
+                Relationship {
+                    kind: "U".into(),
+                    target: "thumb.png".into()
+                }
+            ]
+        );
+        let external = br#"<Relationships><Relationship Target="x.model" TargetMode="External" Type="T"/></Relationships>"#;
+        let e = relationships(&external[..], "/_rels/.rels", "").unwrap_err();
+        assert!(e.0.contains("External"), "{e}");
     }
 }

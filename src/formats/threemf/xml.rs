@@ -138,12 +138,7 @@ impl<R: BufRead> Xml<R> {
             let mut attributes: [(&[u8], &[u8]); RUN_ATTRIBUTES] = [(&[], &[]); RUN_ATTRIBUTES];
             let bytes = match source.fill_buf() {
                 Ok(bytes) => bytes,
-                Err(e) => {
-                    return Err(ReadError::new(super::package::io_message(
-                        &e,
-                        part.trim_start_matches('/'),
-                    )))
-                }
+                Err(e) => return Err(ReadError::new(io_message(&e, part.trim_start_matches('/')))),
             };
             let space = bytes.iter().take_while(|b| b.is_ascii_whitespace()).count();
             if space == bytes.len() {
@@ -437,10 +432,7 @@ impl<R: BufRead> Xml<R> {
 
     fn malformed(&self, e: &quick_xml::Error) -> ReadError {
         if let quick_xml::Error::Io(io) = e {
-            return ReadError::new(super::package::io_message(
-                io,
-                self.part.trim_start_matches('/'),
-            ));
+            return ReadError::new(io_message(io, self.part.trim_start_matches('/')));
         }
         self.error(&format!(
             "is not well-formed XML near byte {} ({e}): the file is damaged - re-export it",
@@ -550,6 +542,15 @@ fn unescape(value: &[u8]) -> Result<Cow<'_, [u8]>, String> {
     }
     out.extend_from_slice(rest);
     Ok(Cow::Owned(out))
+}
+
+/// The message for an I/O error while inflating `part`.
+pub fn io_message(e: &std::io::Error, part: &str) -> String {
+    if e.kind() == std::io::ErrorKind::Other && e.get_ref().is_some() {
+        e.to_string()
+    } else {
+        format!("part /{part} cannot be inflated ({e}): the package is damaged - re-export it")
+    }
 }
 
 #[cfg(test)]

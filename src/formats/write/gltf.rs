@@ -26,7 +26,7 @@ use rustc_hash::FxHashMap;
 use serde_json::json;
 
 use super::{normal_sums, write_atomic, Job, WriteError, Written};
-use crate::formats::gltf::accessor::Data;
+use crate::formats::gltf::accessor::{type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
 use crate::formats::gltf::container;
 use crate::formats::{read, Format, ReadContext};
@@ -404,18 +404,6 @@ fn values(
         normalized: accessor.normalized,
         has_bounds: accessor.min.is_some() || accessor.max.is_some(),
     })
-}
-
-fn type_name(t: Type) -> &'static str {
-    match t {
-        Type::Scalar => "SCALAR",
-        Type::Vec2 => "VEC2",
-        Type::Vec3 => "VEC3",
-        Type::Vec4 => "VEC4",
-        Type::Mat2 => "MAT2",
-        Type::Mat3 => "MAT3",
-        Type::Mat4 => "MAT4",
-    }
 }
 
 fn component_code(c: ComponentType) -> u32 {

@@ -22,7 +22,8 @@ use ply_rs_bw::ply::{ElementDef, Encoding, PropertyType, ScalarType};
 use super::{
     normal_sums, polygon_corner, renumber, write_atomic, Item, Job, Polygons, WriteError, Written,
 };
-use crate::formats::{ply::header, read, Format, ReadContext};
+use crate::formats::ply::{header, next_line, scalar, scalar_size};
+use crate::formats::{read, Format, ReadContext};
 use crate::repair::Plan;
 
 /// The records of one element: record `i` is `values[starts[i]..starts[i + 1]]`, a list stored as
@@ -495,22 +496,7 @@ struct Reader<'a> {
 impl Reader<'_> {
     fn record(&mut self, def: &ElementDef, out: &mut Vec<f64>) -> Option<()> {
         if self.encoding == Encoding::Ascii {
-            let line = loop {
-                if self.rest.is_empty() {
-                    return None;
-                }
-                let end = self
-                    .rest
-                    .iter()
-                    .position(|&b| b == b'\n' || b == b'\r')
-                    .unwrap_or(self.rest.len());
-                let line = &self.rest[..end];
-                let crlf = self.rest.get(end..end + 2) == Some(b"\r\n");
-                self.rest = self.rest.get(end + 1 + usize::from(crlf)..).unwrap_or(&[]);
-                if !line.trim_ascii().is_empty() {
-                    break line;
-                }
-            };
+            let line = next_line(&mut self.rest, &mut 0)?;
             let text = std::str::from_utf8(line).ok()?;
             let mut tokens = text.split_ascii_whitespace();
             for p in def.properties.values() {
@@ -544,33 +530,9 @@ impl Reader<'_> {
     }
 
     fn scalar(&mut self, t: &ScalarType, big: bool) -> Option<f64> {
-        let size = size(t);
-        let b = self.rest.get(..size)?;
-        self.rest = &self.rest[size..];
-        let mut a = [0u8; 8];
-        a[..size].copy_from_slice(b);
-        if big {
-            a[..size].reverse();
-        }
-        Some(match t {
-            ScalarType::Char => a[0] as i8 as f64,
-            ScalarType::UChar => a[0] as f64,
-            ScalarType::Short => i16::from_le_bytes([a[0], a[1]]) as f64,
-            ScalarType::UShort => u16::from_le_bytes([a[0], a[1]]) as f64,
-            ScalarType::Int => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            ScalarType::UInt => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            ScalarType::Float => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            ScalarType::Double => f64::from_le_bytes(a),
-        })
-    }
-}
-
-fn size(t: &ScalarType) -> usize {
-    match t {
-        ScalarType::Char | ScalarType::UChar => 1,
-        ScalarType::Short | ScalarType::UShort => 2,
-        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
-        ScalarType::Double => 8,
+        let b = self.rest.get(..scalar_size(t))?;
+        self.rest = &self.rest[b.len()..];
+        Some(scalar(b, t, big))
     }
 }
 

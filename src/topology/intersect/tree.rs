@@ -395,13 +395,8 @@ mod tests {
     /// n(n-1)/2 pairs finds, each once.
     #[test]
     fn walk_finds_every_overlapping_pair_once() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut bits = crate::geometry::xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut next = || (bits() >> 11) as f64 / (1u64 << 53) as f64;
         let mut boxes: Vec<Box3> = (0..10_000)
             .map(|_| {
                 let lo = [next(), next(), next()];

@@ -1,0 +1,654 @@
+//! What the text readers (OBJ, OFF, ASCII PLY, ASCII STL) share: telling text from binary content
+//! named as a text format, and reading numbers straight from the file's bytes.
+//!
+//! Binary content is judged on the first [`SAMPLE`] bytes: a well-known signature (an image, an
+//! archive, another mesh format) names what the file is; otherwise a zero byte, control
+//! characters making up more than a sliver of the bytes (1 in 64), or bytes that are mostly not
+//! UTF-8 (a quarter), mean binary data; fewer than 4 such bytes never do. Text in a legacy 8-bit encoding (Latin-1 names and comments are common in OBJ
+//! files) has neither control characters nor many invalid sequences, so it stays text; so does a
+//! file with a short binary preamble before its text.
+//!
+//! Numbers are parsed from bytes, without UTF-8 validation, and accept exactly what the standard
+//! library's `str::parse` accepts, with the same value: floats through `fast-float2` (an exact
+//! parser: the correctly rounded `f64`, `inf`, `nan` and `infinity` in any case, with a sign),
+//! integers by the loop below (an optional sign, then ASCII digits, no overflow).
+
+use super::ReadError;
+
+/// How many leading bytes decide whether a file is text.
+pub(crate) const SAMPLE: usize = 8192;
+
+/// Fewer control characters (or bytes of invalid UTF-8) than this never make a file binary,
+/// however short it is.
+const MIN_ODD: usize = 4;
+
+/// Signatures of formats that end up renamed to a mesh text extension: what a person would call
+/// the file. A file starting with one of these is not text of any mesh format.
+const SIGNATURES: [(&[u8], &str); 22] = [
+    (b"\x89PNG\r\n\x1a\n", "a PNG image"),
+    (b"\xff\xd8\xff", "a JPEG image"),
+    (b"GIF87a", "a GIF image"),
+    (b"GIF89a", "a GIF image"),
+    (b"II*\0", "a TIFF image"),
+    (b"MM\0*", "a TIFF image"),
+    (b"DDS ", "a DDS texture"),
+    (b"\xabKTX ", "a KTX texture"),
+    (
+        b"PK\x03\x04",
+        "a ZIP archive (a 3MF package or a zipped model?)",
+    ),
+    (b"PK\x05\x06", "an empty ZIP archive"),
+    (b"\x1f\x8b", "a gzip-compressed file"),
+    (b"\x28\xb5\x2f\xfd", "a Zstandard-compressed file"),
+    (b"\xfd7zXZ\0", "an xz-compressed file"),
+    (b"7z\xbc\xaf\x27\x1c", "a 7-Zip archive"),
+    (b"Rar!\x1a\x07", "a RAR archive"),
+    (b"%PDF-", "a PDF document"),
+    (b"glTF", "a binary glTF (GLB) model"),
+    (b"Kaydara FBX Binary", "a binary FBX model"),
+    (b"BLENDER", "a Blender file"),
+    (b"DRACO", "a Draco-compressed mesh"),
+    (b"\x7fELF", "a program (an ELF executable)"),
+    (
+        b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1",
+        "a Microsoft compound file (an old Office document or a 3ds Max scene?)",
+    ),
+];
+
+/// Why a file's content is not text.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Binary {
+    /// It starts with the signature of another format (named as a person would say it).
+    Known(&'static str),
+    /// It starts with a UTF-16 byte order mark.
+    Utf16,
+    /// A zero byte at this offset.
+    Zero(usize),
+    /// Many control characters, the first at this offset.
+    Control(usize),
+    /// Mostly bytes that are not UTF-8 text.
+    NotText,
+}
+
+/// Control characters text never holds: everything below a space except tab, line feed, vertical
+/// tab, form feed and carriage return, and DOS's end-of-file mark (0x1a, still found at the end of
+/// old text files); and DEL.
+fn is_control(b: u8) -> bool {
+    (b < 0x20 && !matches!(b, b'\t' | b'\n' | 0x0b | 0x0c | b'\r' | 0x1a)) || b == 0x7f
+}
+
+impl Binary {
+    /// The signature of a known format at the start of `bytes`, or a UTF-16 byte order mark.
+    pub(crate) fn known(bytes: &[u8]) -> Option<Binary> {
+        if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+            return Some(Binary::Utf16);
+        }
+        if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r") {
+            return Some(Binary::Known("a PLY file"));
+        }
+        SIGNATURES
+            .iter()
+            .find(|(magic, _)| bytes.starts_with(magic))
+            .map(|&(_, name)| Binary::Known(name))
+    }
+
+    /// Why `bytes` is not text, or `None` when it is (see the module comment for the rule).
+    pub(crate) fn of(bytes: &[u8]) -> Option<Binary> {
+        if let Some(known) = Binary::known(bytes) {
+            return Some(known);
+        }
+        let sample = &bytes[..bytes.len().min(SAMPLE)];
+        if let Some(at) = memchr::memchr(0, sample) {
+            return Some(Binary::Zero(at));
+        }
+        let controls = sample.iter().filter(|&&b| is_control(b)).count();
+        // Text has none (a stray escape code in a comment, at most a few); 1 in 64 is far below
+        // the ~1 in 9 of compressed or random data.
+        if controls >= MIN_ODD && controls * 64 >= sample.len() {
+            let first = sample.iter().position(|&b| is_control(b)).unwrap_or(0);
+            return Some(Binary::Control(first));
+        }
+        // Latin-1 names or comments make isolated invalid bytes; binary data is about half.
+        if !sample.is_ascii() {
+            let invalid = invalid_utf8_bytes(sample);
+            if invalid >= MIN_ODD && invalid * 4 >= sample.len() {
+                return Some(Binary::NotText);
+            }
+        }
+        None
+    }
+
+    /// The error for a file of `format` ("OBJ", "OFF", "PLY", "STL") with this content.
+    pub(crate) fn error(&self, format: &str) -> ReadError {
+        let a = if format.starts_with(['O', 'S']) {
+            "an"
+        } else {
+            "a"
+        };
+        let data = match self {
+            Binary::Known(name) => {
+                return ReadError::new(format!(
+                    "this looks like {name}, not {a} {format} file - rename it to its real \
+                     extension, or re-export the model as {format}"
+                ))
+            }
+            Binary::Utf16 => {
+                return ReadError::new(format!(
+                    "the {format} file is UTF-16 text: {format} must be ASCII or UTF-8 - re-save \
+                     it as UTF-8 (any text editor can convert it)"
+                ))
+            }
+            Binary::Zero(at) => format!("a zero byte at offset {at}"),
+            Binary::Control(at) => format!("control characters, the first at offset {at}"),
+            Binary::NotText => "mostly bytes that are not text".to_owned(),
+        };
+        ReadError::new(format!(
+            "not a text {format} file: binary data ({data}) - check that the file really is {a} \
+             {format} (a renamed or corrupted file?)"
+        ))
+    }
+}
+
+/// How many bytes of `bytes` are in invalid UTF-8 sequences (a sequence cut by the end of
+/// `bytes` does not count: the sample may end inside a character).
+fn invalid_utf8_bytes(mut bytes: &[u8]) -> usize {
+    let mut invalid = 0;
+    loop {
+        match std::str::from_utf8(bytes) {
+            Ok(_) => return invalid,
+            Err(e) => match e.error_len() {
+                Some(n) => {
+                    invalid += n;
+                    bytes = &bytes[e.valid_up_to() + n..];
+                }
+                None => return invalid,
+            },
+        }
+    }
+}
+
+/// The words of a line: the runs of bytes between ASCII whitespace, as `str::split_ascii_whitespace`
+/// finds them.
+#[inline]
+pub(crate) fn words(line: &[u8]) -> Words<'_> {
+    Words { rest: line }
+}
+
+/// The iterator of [`words`].
+#[derive(Clone)]
+pub(crate) struct Words<'a> {
+    rest: &'a [u8],
+}
+
+impl<'a> Iterator for Words<'a> {
+    type Item = &'a [u8];
+
+    #[inline]
+    fn next(&mut self) -> Option<&'a [u8]> {
+        let start = self.rest.iter().position(|b| !b.is_ascii_whitespace())?;
+        let rest = &self.rest[start..];
+        let end = rest
+            .iter()
+            .position(u8::is_ascii_whitespace)
+            .unwrap_or(rest.len());
+        self.rest = &rest[end..];
+        Some(&rest[..end])
+    }
+}
+
+/// Whitespace-separated tokens across lines, with the 1-based line each starts on; with
+/// `COMMENTS`, `#` also ends a token and starts a comment that runs to the end of its line.
+/// Numbers are read in one pass from a token's first byte ([`Tokens::number`]).
+pub(crate) struct Tokens<'a, const COMMENTS: bool> {
+    bytes: &'a [u8],
+    pos: usize,
+    /// The line of the next byte.
+    pub line: u64,
+}
+
+impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
+    /// The tokens of `bytes`, whose first byte is on line `line`.
+    pub(crate) fn new(bytes: &'a [u8], line: u64) -> Self {
+        Tokens {
+            bytes,
+            pos: 0,
+            line,
+        }
+    }
+
+    #[inline]
+    fn ends_token(b: u8) -> bool {
+        b.is_ascii_whitespace() || (COMMENTS && b == b'#')
+    }
+
+    /// Moves to the start of the next token; false at the end of the bytes.
+    #[inline]
+    fn reach(&mut self) -> bool {
+        while let Some(&b) = self.bytes.get(self.pos) {
+            if COMMENTS && b == b'#' {
+                self.skip_line();
+            } else if b.is_ascii_whitespace() {
+                if b == b'\n' {
+                    self.line += 1;
+                }
+                self.pos += 1;
+            } else {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The next token and its line.
+    pub(crate) fn next(&mut self) -> Option<(&'a [u8], u64)> {
+        if !self.reach() {
+            return None;
+        }
+        let start = self.pos;
+        while self
+            .bytes
+            .get(self.pos)
+            .is_some_and(|&b| !Self::ends_token(b))
+        {
+            self.pos += 1;
+        }
+        Some((&self.bytes[start..self.pos], self.line))
+    }
+
+    /// The next token as a number read by `leading` (the number at the start of some bytes and
+    /// its length: [`leading_f64`], [`leading_i64`], [`leading_u64`]): `Ok` when the number is the
+    /// whole token (the same as parsing the token), else `Err` with the token for the caller's
+    /// message. `None` at the end of the bytes.
+    #[inline]
+    pub(crate) fn number<T>(
+        &mut self,
+        leading: impl Fn(&[u8]) -> Option<(T, usize)>,
+    ) -> Option<(Result<T, &'a [u8]>, u64)> {
+        if !self.reach() {
+            return None;
+        }
+        let rest = &self.bytes[self.pos..];
+        if let Some((x, n)) = leading(rest) {
+            if rest.get(n).is_none_or(|&b| Self::ends_token(b)) {
+                self.pos += n;
+                return Some((Ok(x), self.line));
+            }
+        }
+        let (token, line) = self.next()?;
+        Some((Err(token), line))
+    }
+
+    /// The rest of the current line (without a comment and surrounding blanks), then skips it.
+    pub(crate) fn rest_of_line(&mut self) -> &'a [u8] {
+        let start = self.pos.min(self.bytes.len());
+        let end = self.bytes[start..]
+            .iter()
+            .position(|&b| b == b'\n' || (COMMENTS && b == b'#'))
+            .map_or(self.bytes.len(), |k| start + k);
+        self.skip_line();
+        self.bytes[start..end].trim_ascii()
+    }
+
+    /// Skips to the start of the next line.
+    pub(crate) fn skip_line(&mut self) {
+        match memchr::memchr(b'\n', &self.bytes[self.pos.min(self.bytes.len())..]) {
+            Some(k) => {
+                self.pos += k + 1;
+                self.line += 1;
+            }
+            None => self.pos = self.bytes.len(),
+        }
+    }
+}
+
+/// The `f64` that `str::parse::<f64>` gives for these bytes, or `None` where it gives an error.
+#[inline]
+pub(crate) fn parse_f64(bytes: &[u8]) -> Option<f64> {
+    fast_float2::parse(bytes).ok()
+}
+
+/// `str::parse::<i64>` on bytes: an optional `+` or `-`, then one or more ASCII digits, in range.
+#[inline]
+pub(crate) fn parse_i64(bytes: &[u8]) -> Option<i64> {
+    leading_i64(bytes)
+        .filter(|&(_, n)| n == bytes.len())
+        .map(|(i, _)| i)
+}
+
+/// The integer at the start of `bytes` (an optional sign, then ASCII digits up to the first other
+/// byte) and its length in bytes; `None` without a digit or out of range.
+#[inline]
+pub(crate) fn leading_i64(bytes: &[u8]) -> Option<(i64, usize)> {
+    let (negative, at) = match bytes.first()? {
+        b'-' => (true, 1),
+        b'+' => (false, 1),
+        _ => (false, 0),
+    };
+    let (magnitude, end) = leading_digits(bytes, at)?;
+    if negative {
+        // i64::MIN has no positive counterpart.
+        (magnitude <= i64::MIN.unsigned_abs()).then(|| (magnitude.wrapping_neg() as i64, end))
+    } else {
+        i64::try_from(magnitude).ok().map(|i| (i, end))
+    }
+}
+
+/// The value of the ASCII digits of `bytes` from `at` to the first other byte, and where they
+/// end; `None` without a digit or above `u64::MAX`.
+#[inline(always)]
+fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
+    let mut value = 0u64;
+    let mut end = at;
+    while let Some(&b) = bytes.get(end) {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            break;
+        }
+        // 19 digits always fit a u64: only longer numbers need the checked steps.
+        value = if end - at < 19 {
+            value * 10 + d as u64
+        } else {
+            value.checked_mul(10)?.checked_add(d as u64)?
+        };
+        end += 1;
+    }
+    (end > at).then_some((value, end))
+}
+
+/// `str::parse::<u64>` on bytes: an optional `+`, then one or more ASCII digits, in range.
+#[inline]
+pub(crate) fn parse_u64(bytes: &[u8]) -> Option<u64> {
+    leading_u64(bytes)
+        .filter(|&(_, n)| n == bytes.len())
+        .map(|(i, _)| i)
+}
+
+/// The unsigned integer at the start of `bytes` (an optional `+`, then ASCII digits up to the
+/// first other byte) and its length in bytes; `None` without a digit or out of range.
+#[inline]
+pub(crate) fn leading_u64(bytes: &[u8]) -> Option<(u64, usize)> {
+    leading_digits(bytes, usize::from(bytes.first() == Some(&b'+')))
+}
+
+/// The `f64` at the start of `bytes` as [`parse_f64`] reads it, and its length in bytes.
+#[inline]
+pub(crate) fn leading_f64(bytes: &[u8]) -> Option<(f64, usize)> {
+    fast_float2::parse_partial(bytes).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tiny xorshift for the random strings below (no `rand` crate).
+    fn random(seed: &mut u64) -> u64 {
+        *seed ^= *seed << 13;
+        *seed ^= *seed >> 7;
+        *seed ^= *seed << 17;
+        *seed
+    }
+
+    /// The same answer as the standard parser: both refuse, or both give the same bits (any NaN
+    /// for a NaN: only its sign could differ, and nothing reads it).
+    fn same_as_std(text: &str) {
+        let ours = parse_f64(text.as_bytes());
+        let std = text.parse::<f64>().ok();
+        match (ours, std) {
+            (Some(a), Some(b)) if a.is_nan() && b.is_nan() => {}
+            (Some(a), Some(b)) => assert_eq!(a.to_bits(), b.to_bits(), "`{text}`: {a} vs {b}"),
+            (a, b) => assert_eq!(a, b, "`{text}`"),
+        }
+        assert_eq!(
+            parse_i64(text.as_bytes()),
+            text.parse::<i64>().ok(),
+            "`{text}`"
+        );
+        assert_eq!(
+            parse_u64(text.as_bytes()),
+            text.parse::<u64>().ok(),
+            "`{text}`"
+        );
+        // A number read from a token's first byte is the token's number when it spans the token.
+        let whole = leading_f64(text.as_bytes()).filter(|&(_, n)| n == text.len());
+        assert_eq!(
+            whole.map(|(x, _)| x.to_bits()),
+            ours.map(f64::to_bits),
+            "`{text}`"
+        );
+        let longest = (1..=text.len())
+            .rev()
+            .filter(|&k| text.is_char_boundary(k))
+            .find_map(|k| text[..k].parse::<u64>().ok().map(|i| (i, k)));
+        let overflow =
+            longest.is_some_and(|(_, k)| text[k..].starts_with(|c: char| c.is_ascii_digit()));
+        if !overflow {
+            assert_eq!(leading_u64(text.as_bytes()), longest, "`{text}`");
+        }
+    }
+
+    /// Awkward numbers: more digits than an f64 holds (ties at the 17th digit and beyond decide
+    /// the rounding), the largest and smallest normal and subnormal values and just past them,
+    /// overflow to infinity and underflow to zero, signed zeros, a bare `.` or exponent, every
+    /// spelling of infinity and NaN the standard parser takes, and integer limits.
+    #[test]
+    fn numbers_read_as_the_standard_parser_reads_them() {
+        for text in [
+            "0",
+            "-0",
+            "+0",
+            "-0.0",
+            "0.0e0",
+            "1",
+            "+3",
+            "-3",
+            ".5",
+            "5.",
+            "-.5",
+            "+5.",
+            ".",
+            "-",
+            "+",
+            "",
+            " 1",
+            "1 ",
+            "e5",
+            "1e",
+            "1e+",
+            "1e-",
+            "1e5",
+            "1E5",
+            "1e+5",
+            "1e-5",
+            "1.e5",
+            ".1e5",
+            "1.5e-3",
+            "0.1",
+            "0.2",
+            "0.3",
+            "123456.789",
+            "3.141592653589793",
+            "3.1415926535897932384626433832795028841971693993751",
+            "2.2250738585072014e-308",
+            "2.2250738585072011e-308",
+            "4.9406564584124654e-324",
+            "2.4703282292062327e-324",
+            "2.4703282292062328e-324",
+            "1e-400",
+            "-1e-400",
+            "1.7976931348623157e308",
+            "1.7976931348623158e308",
+            "1.7976931348623159e308",
+            "1e308",
+            "1e309",
+            "1e400",
+            "-1e400",
+            "1e99999999999999999999",
+            "9007199254740993",
+            "9007199254740992.5",
+            "9007199254740993.0000000000000000000001",
+            "0.000000000000000000000000000000000000000000001e45",
+            "12345678901234567890123456789",
+            "00000000000000000000000000001.5",
+            "1_000",
+            "0x10",
+            "1,5",
+            "1.5.5",
+            "--1",
+            "+-1",
+            "1e5.5",
+            "inf",
+            "-inf",
+            "+inf",
+            "INF",
+            "Inf",
+            "infinity",
+            "-Infinity",
+            "INFINITY",
+            "infinit",
+            "infinityy",
+            "nan",
+            "NaN",
+            "-nan",
+            "+NAN",
+            "nan(1)",
+            "nana",
+            "in",
+            "na",
+            "1.#IND",
+            "1.#QNAN",
+            "-1.#INF",
+            "9223372036854775807",
+            "9223372036854775808",
+            "-9223372036854775808",
+            "-9223372036854775809",
+            "18446744073709551615",
+            "18446744073709551616",
+            "-0",
+            "+",
+            "007",
+            "١",
+            "1\u{0}",
+        ] {
+            same_as_std(text);
+        }
+    }
+
+    /// Random strings over the characters numbers are made of agree with the standard parser.
+    #[test]
+    fn random_numbers_read_as_the_standard_parser_reads_them() {
+        const CHARS: &[u8] = b"0123456789012345678901234567890123456789..++--eEinfatyINFATY#";
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..20_000 {
+            let len = 1 + random(&mut seed) as usize % 24;
+            let text: String = (0..len)
+                .map(|_| CHARS[random(&mut seed) as usize % CHARS.len()] as char)
+                .collect();
+            same_as_std(&text);
+        }
+        // Shortest texts of random doubles, and the same with their last digit changed.
+        for _ in 0..20_000 {
+            let x = f64::from_bits(random(&mut seed));
+            let text = format!("{x:e}");
+            same_as_std(&text);
+            let mut bumped = text.into_bytes();
+            if let Some(d) = bumped.iter_mut().rev().find(|d| d.is_ascii_digit()) {
+                *d = b'0' + (*d - b'0' + 5) % 10;
+            }
+            same_as_std(std::str::from_utf8(&bumped).unwrap());
+        }
+    }
+
+    #[test]
+    fn words_are_split_at_ascii_whitespace_only() {
+        let line = " v\t1 \x0c2\r\n3\x0b4  caf\u{e9}\u{a0}x ";
+        let ours: Vec<&[u8]> = words(line.as_bytes()).collect();
+        let std: Vec<&[u8]> = line.split_ascii_whitespace().map(str::as_bytes).collect();
+        assert_eq!(ours, std);
+        assert_eq!(ours.len(), 5);
+        assert_eq!(words(b"  \t ").next(), None);
+    }
+
+    /// 64 bytes of text: `v 0 0 0\n` eight times.
+    fn text_of(len: usize) -> Vec<u8> {
+        b"v 0 0 0\n".iter().copied().cycle().take(len).collect()
+    }
+
+    #[test]
+    fn signatures_are_named() {
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.extend(text_of(100));
+        assert_eq!(Binary::of(&png), Some(Binary::Known("a PNG image")));
+        let e = Binary::of(&png).unwrap().error("OBJ").0;
+        assert!(e.contains("looks like a PNG image, not an OBJ file"), "{e}");
+        assert_eq!(
+            Binary::of(b"PK\x03\x04rest"),
+            Some(Binary::Known(
+                "a ZIP archive (a 3MF package or a zipped model?)"
+            ))
+        );
+        assert!(Binary::of(b"glTF\x02")
+            .unwrap()
+            .error("PLY")
+            .0
+            .contains("not a PLY file"));
+        assert_eq!(Binary::of(b"\xff\xfev\0"), Some(Binary::Utf16));
+        assert!(Binary::Utf16.error("OFF").0.contains("OFF file is UTF-16"));
+    }
+
+    /// 8 KiB of text with k control bytes: 127 (under 1 in 64 of 8192) is still text, 128 is
+    /// binary; the same in a 640-byte file: 9 stay text (9 * 64 < 640), 10 do not; and in any
+    /// file, fewer than 4 stay text.
+    #[test]
+    fn control_characters_are_binary_past_one_in_sixty_four() {
+        for (len, text, binary) in [(8192, 127, 128), (640, 9, 10)] {
+            let mut b = text_of(len);
+            for k in 0..text {
+                b[8 * k + 2] = 0x01;
+            }
+            assert_eq!(Binary::of(&b), None, "{len} bytes, {text} controls");
+            b[8 * text + 2] = 0x01;
+            assert_eq!(
+                Binary::of(&b),
+                Some(Binary::Control(2)),
+                "{binary} controls"
+            );
+        }
+        // Three control characters in 64 bytes are not binary, four in 256 bytes are.
+        let mut b = text_of(64);
+        b[1] = 0x1b;
+        b[9] = 0x1b;
+        b[17] = 0x1b;
+        assert_eq!(Binary::of(&b), None);
+        let mut b = text_of(256);
+        for k in [1, 9, 17, 25] {
+            b[k] = 0x1b;
+        }
+        assert_eq!(Binary::of(&b), Some(Binary::Control(1)));
+        // Past the sample nothing counts; tab, CR, FF, VT and a DOS end-of-file mark are text.
+        let mut b = text_of(SAMPLE);
+        b.extend([1u8; 1000]);
+        assert_eq!(Binary::of(&b), None);
+        assert_eq!(Binary::of(b"v\t0\x0b0\x0c0\r\n\x1a"), None);
+        assert_eq!(Binary::of(b"v 0 0\0 0\n"), Some(Binary::Zero(5)));
+    }
+
+    /// Latin-1 comments (one invalid byte per accented letter) are text; bytes of which a quarter
+    /// or more are invalid UTF-8 are not, if there are at least 4 of them.
+    #[test]
+    fn invalid_utf8_is_binary_only_when_dense() {
+        let mut b = b"# caf\xe9 cr\xe8me br\xfbl\xe9e\n".to_vec();
+        b.extend(text_of(64));
+        assert_eq!(Binary::of(&b), None);
+        // 4 invalid bytes in 16: 25%; 4 in 17 and 3 in 12 are text.
+        assert_eq!(
+            Binary::of(b"\xe9\xe8\xfb\xfbv 0 0 0\n 0 0"),
+            Some(Binary::NotText)
+        );
+        assert_eq!(Binary::of(b"\xe9\xe8\xfb\xfbv 0 0 0\n 0 00"), None);
+        assert_eq!(Binary::of(b"\xe9\xe8\xfbv 0 0 0\n "), None);
+        // Valid UTF-8 of any density is text; a character cut by the sample's end is not invalid.
+        assert_eq!(Binary::of("ééééé".as_bytes()), None);
+        assert_eq!(invalid_utf8_bytes(b"ab\xc3"), 0);
+        assert_eq!(invalid_utf8_bytes(b"a\xffb\xfe\xfd"), 3);
+    }
+}
