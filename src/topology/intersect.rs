@@ -35,8 +35,9 @@ pub struct Surface<'a> {
     pub table: &'a CornerTable,
     /// The component of table face `t`.
     pub component: &'a (dyn Fn(u32) -> u32 + Sync),
-    /// Whether table face `t` is left out (zero-area faces).
-    pub left_out: &'a (dyn Fn(u32) -> bool + Sync),
+    /// Faces whose [`cross2`] is at most this are left out (zero-area faces; see
+    /// [`zero_area_bound`]).
+    pub zero_bound: f64,
     /// The number of table face `t` in the findings (pairs, involved faces), for instance its input
     /// face; `None`: its table number. The kept pairs are the lowest in this numbering.
     pub number: Option<&'a [u32]>,
@@ -142,16 +143,11 @@ pub(crate) fn intersect_table(
     number: Option<&[u32]>,
     search: &Search,
 ) -> Intersections {
-    let triangles = table.triangles();
-    let left_out = |t: u32| {
-        let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
-        cross2(a, b, c) <= zero_bound
-    };
     let surface = Surface {
         points,
         table,
         component,
-        left_out: &left_out,
+        zero_bound,
         number,
     };
     intersect(&surface, search)
@@ -175,23 +171,42 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
 
     // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
-    // the faces kept, each with its box and what the walk needs of it.
-    let (boxes, kept): (Vec<Box3>, Vec<Face>) = (0..nt as u32)
-        .into_par_iter()
-        .with_min_len(4096)
-        .filter_map(|t| {
-            let [a, b, c] = corners(t);
-            if (surface.left_out)(t) || meet::collinear(a, b, c) {
-                return None;
+    // the faces kept, each with its box and what the walk needs of it. One thread gathers them in
+    // one loop; a pool splits them into runs gathered in parallel and joined in order.
+    let gather = |faces: std::ops::Range<usize>| {
+        let mut boxes: Vec<Box3> = Vec::with_capacity(faces.len());
+        let mut kept: Vec<Face> = Vec::with_capacity(faces.len());
+        for t in faces {
+            let [a, b, c] = corners(t as u32);
+            if cross2(a, b, c) <= surface.zero_bound || meet::collinear(a, b, c) {
+                continue;
             }
-            let face = Face {
+            let t = t as u32;
+            boxes.push(tree::box_of(&[a, b, c]));
+            kept.push(Face {
                 vertices: triangles[t as usize],
                 face: surface.number.map_or(t, |n| n[t as usize]),
                 component: (surface.component)(t),
-            };
-            Some((tree::box_of(&[a, b, c]), face))
-        })
-        .unzip();
+            });
+        }
+        (boxes, kept)
+    };
+    const RUN: usize = 1 << 16;
+    let (boxes, kept) = if rayon::current_num_threads() == 1 || nt <= RUN {
+        gather(0..nt)
+    } else {
+        let runs: Vec<(Vec<Box3>, Vec<Face>)> = (0..nt.div_ceil(RUN))
+            .into_par_iter()
+            .map(|r| gather(r * RUN..nt.min((r + 1) * RUN)))
+            .collect();
+        let total = runs.iter().map(|r| r.0.len()).sum();
+        let (mut boxes, mut kept) = (Vec::with_capacity(total), Vec::with_capacity(total));
+        for (b, k) in runs {
+            boxes.extend(b);
+            kept.extend(k);
+        }
+        (boxes, kept)
+    };
     let order = tree::morton_order(&boxes);
     let tree = Tree::build(&boxes, &order);
     drop(boxes);

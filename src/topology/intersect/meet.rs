@@ -28,37 +28,67 @@ pub(super) type Point = [f64; 3];
 
 /// Whether faces `f` and `g` (welded vertex ids and their positions) meet.
 pub(super) fn faces_meet(f_ids: [u32; 3], f: [Point; 3], g_ids: [u32; 3], g: [Point; 3]) -> bool {
-    // `at[i]`: the corner of g on f's vertex i, if any.
-    let at = f_ids.map(|v| g_ids.iter().position(|&w| w == v));
-    match at.iter().flatten().count() {
-        0 => disjoint_meet(f, g),
+    faces_meet_with::<true>(f_ids, f, g_ids, g)
+}
+
+/// [`faces_meet`], with or without the projection shortcuts (`false`: only the side tests, which
+/// the tests hold the shortcuts to).
+fn faces_meet_with<const SHORTCUTS: bool>(
+    f_ids: [u32; 3],
+    f: [Point; 3],
+    g_ids: [u32; 3],
+    g: [Point; 3],
+) -> bool {
+    // Bit `3 i + j`: f's vertex i is g's vertex j.
+    let mut shared = 0u32;
+    for (i, &v) in f_ids.iter().enumerate() {
+        for (j, &w) in g_ids.iter().enumerate() {
+            shared |= u32::from(v == w) << (3 * i + j);
+        }
+    }
+    match shared.count_ones() {
+        0 => disjoint_meet::<SHORTCUTS>(f, g),
         1 => {
-            let i = at
-                .iter()
-                .position(Option::is_some)
-                .expect("one shared vertex");
-            let j = at[i].expect("one shared vertex");
-            let (v, a, b) = (f[i], f[(i + 1) % 3], f[(i + 2) % 3]);
-            let (c, d) = (g[(j + 1) % 3], g[(j + 2) % 3]);
-            vertex_meet(v, a, b, c, d)
+            let bit = shared.trailing_zeros() as usize;
+            let (i, j) = (bit / 3, bit % 3);
+            vertex_meet::<SHORTCUTS>(f[i], f[NEXT[i]], f[PREV[i]], g[NEXT[j]], g[PREV[j]])
         }
         2 => {
-            let i = at
-                .iter()
-                .position(Option::is_none)
-                .expect("one vertex not shared");
-            let s = (0..3)
-                .find(|&k| !at.contains(&Some(k)))
-                .expect("one vertex not shared");
-            edge_meet(f[(i + 1) % 3], f[(i + 2) % 3], f[i], g[s])
+            // The row of f and the column of g without a shared vertex.
+            let rows = (0..3).map(|i| (shared >> (3 * i)) & 7);
+            let i = rows.clone().position(|r| r == 0).unwrap_or(0);
+            let columns = rows.fold(0, |c, r| c | r);
+            let s = (!columns & 7).trailing_zeros() as usize;
+            edge_meet(f[NEXT[i]], f[PREV[i]], f[i], g[s.min(2)])
         }
         _ => true,
     }
 }
 
+/// The next and the previous corner of a triangle.
+const NEXT: [usize; 3] = [1, 2, 0];
+const PREV: [usize; 3] = [2, 0, 1];
+
 /// Faces `p q r` and `p q s` sharing edge `p q`: they meet only when they fold onto each other,
 /// lying in one plane with `r` and `s` on the same side of the edge.
+///
+/// Most such pairs are neighbours on a surface, far from folded: the normals of `p q r` and
+/// `p q s`, `(q - p) x (r - p)` and `(q - p) x (s - p)`, point apart (`r` and `s` on opposite sides
+/// of the edge, in the plane when there is one), which a dot product beyond its rounding error
+/// says without `orient3d`; exactly flat neighbours (a quad split in two) would each need the
+/// exact predicate otherwise.
 fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
+    let (e, u, w) = (sub(q, p), sub(r, p), sub(s, p));
+    let (nu, nw) = (cross(e, u), cross(e, w));
+    let apart = nu[0] * nw[0] + nu[1] * nw[1] + nu[2] * nw[2];
+    let size = |a: Point, k: usize| {
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        (e[i] * a[j]).abs() + (e[j] * a[i]).abs()
+    };
+    let permanent: f64 = (0..3).map(|k| size(u, k) * size(w, k)).sum();
+    if apart < -FOLD_ERROR * permanent {
+        return false;
+    }
     if Plane::of(p, q, r).side(s) != 0.0 {
         return false;
     }
@@ -67,11 +97,28 @@ fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
     strictly_same_side(o2(p, q, r), o2(p, q, s))
 }
 
+/// Bounds the rounding error of the dot product of two cross products of rounded differences
+/// relative to its permanent (the same sum of products of magnitudes): each of its terms passes
+/// through about eight roundings, so `8 eps` would do; this is five times that.
+const FOLD_ERROR: f64 = 1e-14;
+
 /// Faces `v a b` and `v c d` sharing vertex `v`: they meet when they have another common point,
 /// which is when segment `c d` meets `v a b` or segment `a b` meets `v c d`.
-fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
+///
+/// Where floating point cannot tell a side (faces of one flat fan, common in CAD meshes), the
+/// exact predicate is slow; the faces' projections along f's normal often show first, exactly,
+/// that they share only `v` ([`cones_apart`]).
+fn vertex_meet<const SHORTCUTS: bool>(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
     let f = Plane::of(v, a, b);
-    let (sc, sd) = (f.side(c), f.side(d));
+    let (qc, qd) = (f.quick_side(c), f.quick_side(d));
+    match (qc, qd) {
+        (Some(sc), Some(sd)) if strictly_same_side(sc, sd) => return false,
+        (Some(_), Some(_)) => {}
+        _ if SHORTCUTS && cones_apart(f.flat(), v, a, b, c, d) => return false,
+        _ => {}
+    }
+    let sc = qc.unwrap_or_else(|| f.side(c));
+    let sd = qd.unwrap_or_else(|| f.side(d));
     if strictly_same_side(sc, sd) {
         // g touches f's plane only at v.
         return false;
@@ -102,10 +149,46 @@ fn vertex_meet(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
         || segment_meets_triangle(a, b, sa, sb, [v, c, d])
 }
 
+/// Whether faces `v a b` and `v c d` share only `v`, shown in the projection `axes`: there `v a b`
+/// must stay a triangle (so no other point of its plane falls onto `v`), and a line through `v`
+/// along one of the four edges at `v` must have one face's other corner strictly on one side and
+/// both of the other face's strictly on the other. Then the projected faces share only `v`, and so
+/// do the faces. `false` says nothing.
+fn cones_apart(axes: Axes, v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
+    let [v, a, b, c, d] = [v, a, b, c, d].map(|p| axes.of(p));
+    let turn = o2(v, a, b);
+    if turn == 0.0 {
+        return false;
+    }
+    let beyond = |edge: [f64; 2], own: f64, x: [f64; 2], y: [f64; 2]| {
+        strictly_opposite(o2(v, edge, x), own) && strictly_opposite(o2(v, edge, y), own)
+    };
+    if beyond(a, turn, c, d) || beyond(b, -turn, c, d) {
+        return true;
+    }
+    let other = o2(v, c, d);
+    other != 0.0 && (beyond(c, other, a, b) || beyond(d, -other, a, b))
+}
+
 /// Faces with no shared vertex: they meet when an edge of one meets the other.
-fn disjoint_meet(f: [Point; 3], g: [Point; 3]) -> bool {
+///
+/// As in [`vertex_meet`], where floating point cannot tell a side, disjoint projections along f's
+/// normal settle it first (two triangles whose shadows are apart are apart).
+fn disjoint_meet<const SHORTCUTS: bool>(f: [Point; 3], g: [Point; 3]) -> bool {
     let plane = Plane::of(f[0], f[1], f[2]);
-    let sg = g.map(|x| plane.side(x));
+    let quick = g.map(|x| plane.quick_side(x));
+    if let [Some(x), Some(y), Some(z)] = quick {
+        if one_strict_side([x, y, z]) {
+            return false;
+        }
+    } else if SHORTCUTS {
+        let axes = plane.flat();
+        let (f2, g2) = (f.map(|x| axes.of(x)), g.map(|x| axes.of(x)));
+        if separates(f2, &g2) || separates(g2, &f2) {
+            return false;
+        }
+    }
+    let sg: [f64; 3] = std::array::from_fn(|k| quick[k].unwrap_or_else(|| plane.side(g[k])));
     if one_strict_side(sg) {
         return false;
     }
@@ -204,18 +287,37 @@ impl Plane {
     /// when the value is beyond its error bound, else by the exact predicate.
     #[inline]
     fn side(&self, s: Point) -> f64 {
+        self.quick_side(s)
+            .unwrap_or_else(|| o3(self.p, self.q, self.r, s))
+    }
+
+    /// [`Plane::side`] when floating point settles it; `None` when only the exact predicate can.
+    #[inline]
+    fn quick_side(&self, s: Point) -> Option<f64> {
         let d = sub(s, self.p);
         let det = d[0] * self.n[0] + d[1] * self.n[1] + d[2] * self.n[2];
         let permanent = d[0].abs() * self.magnitude[0]
             + d[1].abs() * self.magnitude[1]
             + d[2].abs() * self.magnitude[2];
         if det.abs() > SIDE_ERROR * permanent {
-            return -det;
+            return Some(-det);
         }
         if permanent == 0.0 && !has_tiny(&[d, sub(self.q, self.p), sub(self.r, self.p)]) {
-            return 0.0;
+            return Some(0.0);
         }
-        o3(self.p, self.q, self.r, s)
+        None
+    }
+
+    /// The projection along the axis where this plane's normal is largest (in floating point).
+    fn flat(&self) -> Axes {
+        let [x, y, z] = self.n.map(f64::abs);
+        AXES[if x >= y && x >= z {
+            0
+        } else if y >= z {
+            1
+        } else {
+            2
+        }]
     }
 }
 
@@ -414,6 +516,59 @@ fn cross(a: Point, b: Point) -> Point {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The projection shortcuts never change an answer: pairs of faces on a coarse integer grid
+    /// (so that many are exactly coplanar, touch, or put a corner exactly on the other's plane),
+    /// sharing no vertex, one or two, and the same pairs turned by an angle (so that floating
+    /// point cannot tell the sides and the shortcuts run), each decided with and without them.
+    #[test]
+    fn shortcuts_agree_with_the_side_tests() {
+        let mut bits = crate::geometry::xorshift(0x5eed_cafe);
+        let mut coordinate = || (bits() % 5) as f64;
+        let (s, c) = (0.6f64, 0.8f64);
+        let (mut met, mut apart) = (0, 0);
+        for round in 0..60_000 {
+            let mut p: [Point; 6] =
+                std::array::from_fn(|_| [coordinate(), coordinate(), coordinate()]);
+            if round % 2 == 1 {
+                // A rotation about x and z by angles whose sines and cosines are not all exact.
+                for q in &mut p {
+                    let [x, y, z] = *q;
+                    let (y, z) = (c * y - s * z + 0.1, s * y + c * z);
+                    *q = [x * 0.28 - y * 0.96, x * 0.96 + y * 0.28, z];
+                }
+            }
+            let shared = round % 3;
+            let f_ids = [0, 1, 2];
+            let g_ids: [u32; 3] = match shared {
+                0 => [3, 4, 5],
+                1 => [0, 4, 5],
+                _ => [1, 0, 5],
+            };
+            let at = |i: u32| p[i as usize];
+            let (f, g) = (f_ids.map(at), g_ids.map(at));
+            let distinct = |t: [u32; 3]| {
+                let q = t.map(at);
+                q[0] != q[1] && q[1] != q[2] && q[0] != q[2] && !collinear(q[0], q[1], q[2])
+            };
+            let welded = (0..6).all(|i| (i + 1..6).all(|j| p[i] != p[j]));
+            if !distinct(f_ids) || !distinct(g_ids) || !welded {
+                continue;
+            }
+            let quick = faces_meet_with::<true>(f_ids, f, g_ids, g);
+            assert_eq!(
+                quick,
+                faces_meet_with::<false>(f_ids, f, g_ids, g),
+                "{f:?} {g:?}"
+            );
+            if quick {
+                met += 1;
+            } else {
+                apart += 1;
+            }
+        }
+        assert!(met > 1000 && apart > 1000, "{met} met, {apart} apart");
+    }
 
     /// A corner: welded vertex id and position.
     type Corner = (u32, Point);

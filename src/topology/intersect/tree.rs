@@ -16,7 +16,7 @@
 use rayon::prelude::*;
 
 /// Faces per leaf.
-pub(super) const LEAF: usize = 4;
+pub(super) const LEAF: usize = 8;
 
 /// A node with at least this many faces splits its work into parallel tasks.
 const PARALLEL_FACES: usize = 1 << 13;
