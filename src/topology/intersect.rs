@@ -341,7 +341,15 @@ impl Visit for Finder<'_> {
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
         let (fa, fb) = (&s.faces[a as usize], &s.faces[b as usize]);
-        let corners = |f: &Face| f.vertices.map(|v| s.points[v as usize]);
+        // Written out: `array::map` here costs as much as the loads.
+        let corners = |f: &Face| {
+            let [a, b, c] = f.vertices;
+            [
+                s.points[a as usize],
+                s.points[b as usize],
+                s.points[c as usize],
+            ]
+        };
         if !meet::faces_meet(fa.vertices, corners(fa), fb.vertices, corners(fb)) {
             return;
         }

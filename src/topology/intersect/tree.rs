@@ -230,15 +230,21 @@ impl Tree {
     /// Bit `j` set: the box of face `j` of `leaf` overlaps `b`.
     #[inline]
     fn overlapping(leaf: &Leaf, b: &Box3) -> u32 {
-        (0..LEAF).fold(0, |mask, j| {
-            let hit = (leaf[0][j] <= b[3])
-                & (b[0] <= leaf[3][j])
-                & (leaf[1][j] <= b[4])
-                & (b[1] <= leaf[4][j])
-                & (leaf[2][j] <= b[5])
-                & (b[2] <= leaf[5][j]);
-            mask | u32::from(hit) << j
-        })
+        // Lane by lane into an array first, which the compiler turns into vector compares.
+        let mut hit = [0u32; LEAF];
+        for (j, h) in hit.iter_mut().enumerate() {
+            *h = u32::from(
+                (leaf[0][j] <= b[3])
+                    & (b[0] <= leaf[3][j])
+                    & (leaf[1][j] <= b[4])
+                    & (b[1] <= leaf[4][j])
+                    & (leaf[2][j] <= b[5])
+                    & (b[2] <= leaf[5][j]),
+            );
+        }
+        hit.iter()
+            .enumerate()
+            .fold(0, |mask, (j, &h)| mask | h << j)
     }
 
     fn face_box(leaf: &Leaf, j: usize) -> Box3 {
