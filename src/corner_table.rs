@@ -635,15 +635,10 @@ fn key_of(a: u32, b: u32, corner: u32) -> u64 {
 /// Pairs the corners of one sorted bucket (keys of [`key_of`], one lower vertex): each run of
 /// one higher vertex is an edge, paired, a border or non-manifold by its length.
 fn pair_bucket(bucket: &[u64], out: &mut Paired, set: &mut impl FnMut(&mut Paired, u32, u32)) {
-    let mut i = 0;
-    while i < bucket.len() {
-        let hi = bucket[i] >> 33;
-        let mut j = i + 1;
-        while j < bucket.len() && bucket[j] >> 33 == hi {
-            j += 1;
-        }
-        let corner = |k: usize| bucket[k] as u32;
-        match j - i {
+    let corner = |k: usize| bucket[k] as u32;
+    for run in crate::weld::runs(bucket, 33) {
+        let i = run.start;
+        match run.len() {
             1 => {
                 set(out, corner(i), corner(i));
                 out.border_count += 1;
@@ -658,7 +653,7 @@ fn pair_bucket(bucket: &[u64], out: &mut Paired, set: &mut impl FnMut(&mut Paire
             }
             _ => {
                 let first = out.nm_corners.len();
-                for k in i..j {
+                for k in run {
                     set(out, corner(k), NON_MANIFOLD);
                     out.nm_corners.push(corner(k));
                 }
@@ -667,7 +662,6 @@ fn pair_bucket(bucket: &[u64], out: &mut Paired, set: &mut impl FnMut(&mut Paire
             }
         }
         out.edge_count += 1;
-        i = j;
     }
 }
 

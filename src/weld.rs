@@ -121,17 +121,10 @@ fn weld_exact(positions: &[[f64; 3]], parallel: bool) -> Welded {
 
     // Runs of equal hashes never cross a bucket (the bucket is the hash's top byte).
     let link_bucket = |bucket: &[u64]| {
-        let mut i = 0;
-        while i < bucket.len() {
-            let h = bucket[i] >> 32;
-            let mut j = i + 1;
-            while j < bucket.len() && bucket[j] >> 32 == h {
-                j += 1;
+        for run in runs(bucket, 32) {
+            if run.len() > 1 {
+                link_run(&bucket[run], positions, &link);
             }
-            if j - i > 1 {
-                link_run(&bucket[i..j], positions, &link);
-            }
-            i = j;
         }
     };
     let bucket_slices = || buckets.windows(2).map(|w| &keys[w[0]..w[1]]);
@@ -164,6 +157,21 @@ fn weld_exact(positions: &[[f64; 3]], parallel: bool) -> Welded {
 /// position, leaving that one [`FIRST`]. A run longer than a few keys (a vertex shared by many
 /// faces of a soup, or keys made to collide) is sorted by position, so no run costs more than a
 /// sort of itself.
+/// The runs of `keys` (sorted by their bits from `shift` up) with equal bits from `shift` up, as
+/// ranges, in order.
+pub(crate) fn runs(keys: &[u64], shift: u32) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+    let mut i = 0;
+    std::iter::from_fn(move || {
+        let start = i;
+        let high = keys.get(start)? >> shift;
+        i += 1;
+        while i < keys.len() && keys[i] >> shift == high {
+            i += 1;
+        }
+        Some(start..i)
+    })
+}
+
 fn link_run(run: &[u64], positions: &[[f64; 3]], link: &[AtomicU32]) {
     const FEW: usize = 16;
     let index = |e: u64| e as u32;

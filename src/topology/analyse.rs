@@ -322,8 +322,15 @@ fn count_duplicates(table: &CornerTable) -> usize {
             count += usize::from(c < b && table.v(b) == f[k]);
         }
     }
+    count + duplicates_at_nonmanifold_edges(table)
+}
+
+/// The extra copies among the faces of non-manifold edges: the repeated opposite vertices below
+/// the edge's lower end.
+fn duplicates_at_nonmanifold_edges(table: &CornerTable) -> usize {
     let edge_min = |c: u32| table.v(CornerTable::n(c)).min(table.v(CornerTable::p(c)));
     let mut apex = Vec::new();
+    let mut count = 0;
     for corners in table.nonmanifold_edges() {
         let low = edge_min(corners[0]);
         apex.clear();
@@ -850,15 +857,7 @@ mod tests {
                 }
             }
         }
-        let mut apex = Vec::new();
-        for corners in table.nonmanifold_edges() {
-            let low = edge_min(corners[0]);
-            apex.clear();
-            apex.extend(corners.iter().map(|&c| table.v(c)).filter(|&x| x < low));
-            apex.sort_unstable();
-            count += apex.windows(2).filter(|w| w[0] == w[1]).count();
-        }
-        count
+        count + duplicates_at_nonmanifold_edges(table)
     }
 
     /// A pillow (a face and its reversed copy: one duplicate on each of its three manifold edges,
