@@ -2573,3 +2573,39 @@ fn a_cavity_that_meets_nothing_is_still_a_cavity() {
     assert_eq!((a.inside_out_shells(), a.overlapping_shells()), (0, 0));
     assert_volume(a.volume(), Some(26.0));
 }
+
+/// A mesh past the size at which the analysis runs its passes side by side (and the build and the
+/// search on every thread): a 520 x 500 grid torus (520,000 faces, shuffled) with one vertex
+/// pushed through the tube (faces that cross), every 1,009th face dropped (holes) and a second,
+/// small torus inside the tube, a quarter turn away, crossing nothing. Two threads give the analysis of one, field by
+/// field, and the holes, crossings and parts are really there (so the passes had work to agree on).
+#[test]
+fn two_threads_analyse_a_big_mesh_as_one_does() {
+    let mut big = shapes::torus(520, 500, Some(11));
+    big.positions[0] = [shapes::TORUS_R - 1.2 * shapes::TORUS_TUBE, 0.0, 0.0];
+    let mut f = 0;
+    big.triangles.retain(|_| {
+        f += 1;
+        f % 1009 != 0
+    });
+    let mut small = shapes::torus(8, 6, None);
+    for p in &mut small.positions {
+        *p = p.map(|x| 0.1 * x);
+        p[1] += shapes::TORUS_R;
+    }
+    let mesh = merge(&[big, small]);
+    let pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool")
+    };
+    let one = pool(1).install(|| analyse(&mesh, &Options::default()));
+    let two = pool(2).install(|| analyse(&mesh, &Options::default()));
+    assert_eq!(one, two);
+    assert_eq!(one.components.len(), 2);
+    assert!(one.border_edges > 0);
+    let meets = one.intersections.as_ref().expect("searched");
+    assert!(meets.self_intersections > 0);
+    assert_eq!(meets.intersecting_components(), 0);
+}

@@ -16,7 +16,7 @@
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
-use super::built::{build, cross2, zero_area_bound, Built};
+use super::built::{build, cross2, zero_area_bound, Built, PARALLEL_FACES};
 use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
@@ -48,27 +48,41 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         ..Analysis::default()
     };
 
-    // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones).
-    let zero_cross2 = zero_area_bound(a.bbox);
-    // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly in
-    // cache (in input order a shuffled mesh misses it for nearly every corner).
-    for t in table.triangles() {
-        let [p, q, r] = t.map(|i| points[i as usize]);
-        let cross2 = cross2(p, q, r);
-        if cross2 <= zero_cross2 {
-            a.zero_area_faces += 1;
-        }
-        a.area += 0.5 * cross2.sqrt();
-    }
+    // A big mesh on a pool of more than one thread runs the independent passes side by side (each
+    // pass is the same as on one thread, so the analysis is too).
+    let big = table.triangle_count() >= PARALLEL_FACES && rayon::current_num_threads() > 1;
 
+    // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones), beside
+    // 2. patches with orientation parity, then components.
+    let zero_cross2 = zero_area_bound(a.bbox);
+    let faces_pass = || {
+        // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly
+        // in cache (in input order a shuffled mesh misses it for nearly every corner).
+        let (mut zero_area, mut area) = (0, 0.0);
+        for t in table.triangles() {
+            let [p, q, r] = t.map(|i| points[i as usize]);
+            let cross2 = cross2(p, q, r);
+            if cross2 <= zero_cross2 {
+                zero_area += 1;
+            }
+            area += 0.5 * cross2.sqrt();
+        }
+        (zero_area, area, count_duplicates(table))
+    };
+    let patches_pass = || {
+        let patches = walk_patches(table);
+        let component_of_patch = join_patches(table, &patches, &built.source);
+        (patches, component_of_patch)
+    };
+    let ((zero_area, area, duplicates), (mut patches, component_of_patch)) =
+        side_by_side(big, faces_pass, patches_pass);
+    a.zero_area_faces = zero_area;
+    a.area = area;
     a.edges = table.edge_count();
     a.border_edges = table.border_edge_count();
     a.nonmanifold_edges = table.nonmanifold_edges().len();
-    a.duplicate_faces = count_duplicates(table);
+    a.duplicate_faces = duplicates;
 
-    // 2. Patches with orientation parity, then components.
-    let mut patches = walk_patches(table);
-    let component_of_patch = join_patches(table, &patches, &built.source);
     let component_count = component_of_patch
         .iter()
         .map(|&c| c as usize + 1)
@@ -105,8 +119,24 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     }
     a.inconsistent_edges = inconsistent.iter().sum();
 
-    // 3. Fans: non-manifold vertices, vertices per component, holes.
-    let fans = walk_fans(table, &component_of);
+    // 3. Fans: non-manifold vertices, vertices per component, holes; beside 5. the faces that
+    // meet, within a component and between components.
+    let fans_pass = || walk_fans(table, &component_of);
+    let search_pass = || {
+        options.intersections.map(|search| {
+            let component_of = |t: u32| component[t as usize];
+            intersect_table(
+                points,
+                table,
+                &component_of,
+                zero_cross2,
+                Some(&built.source),
+                &search,
+            )
+        })
+    };
+    let (fans, intersections) = side_by_side(big, fans_pass, search_pass);
+    a.intersections = intersections;
     a.nonmanifold_vertices = fans.nonmanifold_vertices;
     let used_vertices = fans.used_vertices;
     for (comp, &n) in fans.vertices_per_component.iter().enumerate() {
@@ -132,18 +162,6 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     }
     a.euler = used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
 
-    // 5. Faces that meet: within a component, between components.
-    a.intersections = options.intersections.map(|search| {
-        let component_of = |t: u32| component[t as usize];
-        intersect_table(
-            points,
-            table,
-            &component_of,
-            zero_cross2,
-            Some(&built.source),
-            &search,
-        )
-    });
     let meeting: &[[u32; 2]] = a
         .intersections
         .as_ref()
@@ -166,6 +184,19 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
             ..built
         },
     )
+}
+
+/// `x()` and `y()`, side by side on the current pool when `big`.
+fn side_by_side<A: Send, B: Send>(
+    big: bool,
+    x: impl FnOnce() -> A + Send,
+    y: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    if big {
+        rayon::join(x, y)
+    } else {
+        (x(), y())
+    }
 }
 
 /// Faces linked through manifold edges, each face with a parity: flipping the faces with parity
