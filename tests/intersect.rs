@@ -523,3 +523,39 @@ fn agrees_with_cgal_on_random_small_meshes() {
     assert_eq!(cases, 600);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Coordinates far from 1 (scaled by 2^120 and 2^-120, exactly): the search scales them back
+/// before its predicates, and must still leave out the zero-area faces the analysis names, by the
+/// mesh's own size. Two triangles cross (one pair between components) and a zero-area sliver
+/// pierces one of them (left out). Before the fix, 2^120 left every face out and 2^-120 none.
+#[test]
+fn far_scales_leave_out_the_same_zero_area_faces() {
+    let positions = vec![
+        [-1.0, -1.0, 0.0],
+        [2.0, -1.0, 0.0],
+        [-1.0, 2.0, 0.0],
+        [0.0, 0.0, -1.0],
+        [0.3, 0.0, 1.0],
+        [0.0, 0.3, 1.0],
+        [0.1, 0.1, -1.0],
+        [0.1, 0.1, 1.0],
+        [0.1 + 1e-13, 0.1, 0.0],
+    ];
+    let triangles = vec![[0, 1, 2], [3, 4, 5], [6, 7, 8]];
+    for scale in [1.0, 2f64.powi(120), 2f64.powi(-120)] {
+        let scaled: Vec<[f64; 3]> = positions.iter().map(|p| p.map(|x| x * scale)).collect();
+        let mesh = Mesh::new(scaled, triangles.clone());
+        let a = analyse(&mesh, &Options::default());
+        assert_eq!(a.zero_area_faces, 1, "scale {scale}");
+        let found = a.intersections.expect("searched");
+        assert_eq!(
+            (
+                found.self_intersections,
+                found.pairs_between,
+                found.involved_faces()
+            ),
+            (0, 1, 2),
+            "scale {scale}"
+        );
+    }
+}

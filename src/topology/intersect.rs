@@ -178,7 +178,15 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         let mut kept: Vec<Face> = Vec::with_capacity(faces.len());
         for t in faces {
             let [a, b, c] = corners(t as u32);
-            if cross2(a, b, c) <= surface.zero_bound || meet::collinear(a, b, c) {
+            // The zero-area bound is the mesh's own: measure the face in its own coordinates.
+            let area = match scaled {
+                Some(_) => {
+                    let [a, b, c] = triangles[t].map(|v| surface.points[v as usize]);
+                    cross2(a, b, c)
+                }
+                None => cross2(a, b, c),
+            };
+            if area <= surface.zero_bound || meet::collinear(a, b, c) {
                 continue;
             }
             let t = t as u32;
