@@ -86,7 +86,8 @@ fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
         (e[i] * a[j]).abs() + (e[j] * a[i]).abs()
     };
     let permanent: f64 = (0..3).map(|k| size(u, k) * size(w, k)).sum();
-    if apart < -FOLD_ERROR * permanent {
+    // (Above 2^-900 the permanent leaves room for any product that underflowed.)
+    if permanent > 1e-271 && apart < -FOLD_ERROR * permanent {
         return false;
     }
     if Plane::of(p, q, r).side(s) != 0.0 {
