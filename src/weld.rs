@@ -153,10 +153,6 @@ fn weld_exact(positions: &[[f64; 3]], parallel: bool) -> Welded {
     }
 }
 
-/// Links every vertex of a run of equal hashes (indices rising) to the first vertex at its
-/// position, leaving that one [`FIRST`]. A run longer than a few keys (a vertex shared by many
-/// faces of a soup, or keys made to collide) is sorted by position, so no run costs more than a
-/// sort of itself.
 /// The runs of `keys` (sorted by their bits from `shift` up) with equal bits from `shift` up, as
 /// ranges, in order.
 pub(crate) fn runs(keys: &[u64], shift: u32) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
@@ -172,6 +168,10 @@ pub(crate) fn runs(keys: &[u64], shift: u32) -> impl Iterator<Item = std::ops::R
     })
 }
 
+/// Links every vertex of a run of equal hashes (indices rising) to the first vertex at its
+/// position, leaving that one [`FIRST`]. A run longer than a few keys (a vertex shared by many
+/// faces of a soup, or keys made to collide) is sorted by position, so no run costs more than a
+/// sort of itself.
 fn link_run(run: &[u64], positions: &[[f64; 3]], link: &[AtomicU32]) {
     const FEW: usize = 16;
     let index = |e: u64| e as u32;
@@ -389,7 +389,8 @@ fn radix_sort_bytes(keys: &mut [u64], bytes: std::ops::Range<u32>) {
     }
 }
 
-/// Mixes the three coordinates' bits; the top bits of the result index the table.
+/// Mixes the three coordinates' bits; the top 32 bits of the result are the sort key of an exact
+/// weld (equal positions, equal keys; the top byte is the radix bucket).
 fn hash(key: [u64; 3]) -> u64 {
     const K: u64 = 0x9E37_79B9_7F4A_7C15;
     let h = key[0].wrapping_mul(K).rotate_left(29) ^ key[1];

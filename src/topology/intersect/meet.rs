@@ -31,8 +31,9 @@ pub(super) fn faces_meet(f_ids: [u32; 3], f: [Point; 3], g_ids: [u32; 3], g: [Po
     faces_meet_with::<true>(f_ids, f, g_ids, g)
 }
 
-/// [`faces_meet`], with or without the projection shortcuts (`false`: only the side tests, which
-/// the tests hold the shortcuts to).
+/// [`faces_meet`], with or without the shortcuts (the normals' dot product for faces on one edge,
+/// the projections for the others; `false`: only the side tests, which the tests hold the
+/// shortcuts to).
 fn faces_meet_with<const SHORTCUTS: bool>(
     f_ids: [u32; 3],
     f: [Point; 3],
@@ -59,7 +60,7 @@ fn faces_meet_with<const SHORTCUTS: bool>(
             let i = rows.clone().position(|r| r == 0).unwrap_or(0);
             let columns = rows.fold(0, |c, r| c | r);
             let s = (!columns & 7).trailing_zeros() as usize;
-            edge_meet(f[NEXT[i]], f[PREV[i]], f[i], g[s.min(2)])
+            edge_meet::<SHORTCUTS>(f[NEXT[i]], f[PREV[i]], f[i], g[s.min(2)])
         }
         _ => true,
     }
@@ -77,7 +78,7 @@ const PREV: [usize; 3] = [2, 0, 1];
 /// of the edge, in the plane when there is one), which a dot product beyond its rounding error
 /// says without `orient3d`; exactly flat neighbours (a quad split in two) would each need the
 /// exact predicate otherwise.
-fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
+fn edge_meet<const SHORTCUTS: bool>(p: Point, q: Point, r: Point, s: Point) -> bool {
     let (e, u, w) = (sub(q, p), sub(r, p), sub(s, p));
     let (nu, nw) = (cross(e, u), cross(e, w));
     let apart = nu[0] * nw[0] + nu[1] * nw[1] + nu[2] * nw[2];
@@ -86,8 +87,10 @@ fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
         (e[i] * a[j]).abs() + (e[j] * a[i]).abs()
     };
     let permanent: f64 = (0..3).map(|k| size(u, k) * size(w, k)).sum();
-    // (Above 2^-900 the permanent leaves room for any product that underflowed.)
-    if permanent > 1e-271 && apart < -FOLD_ERROR * permanent {
+    // The bound assumes no product underflowed. Faces that reach here are not zero-area, so a
+    // normal component too small for that has a partner just as small when the faces fold (the
+    // only case the answer could flip); the permanent above 2^-900 guards the rest.
+    if SHORTCUTS && permanent > 1e-271 && apart < -FOLD_ERROR * permanent {
         return false;
     }
     if Plane::of(p, q, r).side(s) != 0.0 {
@@ -100,7 +103,9 @@ fn edge_meet(p: Point, q: Point, r: Point, s: Point) -> bool {
 
 /// Bounds the rounding error of the dot product of two cross products of rounded differences
 /// relative to its permanent (the same sum of products of magnitudes): each of its terms passes
-/// through about eight roundings, so `8 eps` would do; this is five times that.
+/// through at most eleven roundings of relative error 2^-53 (the three differences, the products
+/// and subtractions of the cross products, the product of the two components, the sum of
+/// three), about 1.2e-15; this is eight times that.
 const FOLD_ERROR: f64 = 1e-14;
 
 /// Faces `v a b` and `v c d` sharing vertex `v`: they meet when they have another common point,
@@ -518,10 +523,11 @@ fn cross(a: Point, b: Point) -> Point {
 mod tests {
     use super::*;
 
-    /// The projection shortcuts never change an answer: pairs of faces on a coarse integer grid
-    /// (so that many are exactly coplanar, touch, or put a corner exactly on the other's plane),
-    /// sharing no vertex, one or two, and the same pairs turned by an angle (so that floating
-    /// point cannot tell the sides and the shortcuts run), each decided with and without them.
+    /// The shortcuts never change an answer: pairs of faces on a coarse integer grid (so that many
+    /// are exactly coplanar, fold, touch, or put a corner exactly on the other's plane), sharing
+    /// no vertex or one (the projections) or two (the normals' dot product), and the same pairs
+    /// turned by an angle (so that floating point cannot tell the sides and the projections
+    /// run), each decided with and without them.
     #[test]
     fn shortcuts_agree_with_the_side_tests() {
         let mut bits = crate::geometry::xorshift(0x5eed_cafe);
