@@ -11,7 +11,6 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-use std::time::Instant;
 
 use meshvet::topology::build;
 use meshvet::{analyse, weld::weld, CornerTable, Mesh, Options};
@@ -19,6 +18,9 @@ use meshvet::{analyse, weld::weld, CornerTable, Mesh, Options};
 #[path = "../tests/shapes/mod.rs"]
 #[allow(dead_code)]
 mod shapes;
+
+mod common;
+use common::best;
 
 /// Counts live heap bytes and their peak.
 struct Counting;
@@ -42,19 +44,6 @@ unsafe impl GlobalAlloc for Counting {
 
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
-
-/// Best of `runs` wall times, in seconds.
-fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut out = None;
-    for _ in 0..runs {
-        let start = Instant::now();
-        let r = f();
-        best = best.min(start.elapsed().as_secs_f64());
-        out = Some(r);
-    }
-    (best, out.expect("at least one run"))
-}
 
 fn bench(label: &str, mesh: &Mesh) {
     let tris = mesh.triangles.len() as f64;

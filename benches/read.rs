@@ -170,7 +170,12 @@ fn obj(mesh: &Mesh) -> Vec<u8> {
 }
 
 fn off(mesh: &Mesh) -> Vec<u8> {
-    let mut s = format!("OFF\n{} {} 0\n", mesh.positions.len(), mesh.triangles.len());
+    let header = format!("OFF\n{} {} 0\n", mesh.positions.len(), mesh.triangles.len());
+    points_and_faces(header, mesh)
+}
+
+/// `header`, then a line `x y z` per vertex and `3 a b c` per face (OFF and ASCII PLY alike).
+fn points_and_faces(mut s: String, mesh: &Mesh) -> Vec<u8> {
     for p in &mesh.positions {
         let [x, y, z] = p.map(coordinate);
         writeln!(s, "{x} {y} {z}").unwrap();
@@ -192,15 +197,7 @@ fn ply_header(mesh: &Mesh, format: &str) -> String {
 }
 
 fn ply_ascii(mesh: &Mesh) -> Vec<u8> {
-    let mut s = ply_header(mesh, "ascii");
-    for p in &mesh.positions {
-        let [x, y, z] = p.map(coordinate);
-        writeln!(s, "{x} {y} {z}").unwrap();
-    }
-    for t in &mesh.triangles {
-        writeln!(s, "3 {} {} {}", t[0], t[1], t[2]).unwrap();
-    }
-    s.into_bytes()
+    points_and_faces(ply_header(mesh, "ascii"), mesh)
 }
 
 fn ply_binary(mesh: &Mesh) -> Vec<u8> {

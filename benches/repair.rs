@@ -22,16 +22,8 @@ use meshvet::{analyse, Mesh};
 #[allow(dead_code)]
 mod shapes;
 
-fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut out = None;
-    for _ in 0..runs {
-        let start = Instant::now();
-        out = Some(f());
-        best = best.min(start.elapsed().as_secs_f64());
-    }
-    (best, out.expect("one run"))
-}
+mod common;
+use common::best;
 
 /// The torus with every 100th face flipped and the faces around 50 spread-out vertices removed.
 fn damaged(n: usize, m: usize) -> Mesh {

@@ -21,6 +21,9 @@ use meshvet::Mesh;
 #[allow(dead_code)]
 mod shapes;
 
+mod common;
+use common::best;
+
 fn main() {
     let dir = tempfile::tempdir().expect("temporary folder");
     let small = dir.path().join("library");
@@ -74,18 +77,6 @@ fn main() {
             full / parse
         );
     }
-}
-
-/// Best wall time of `runs`, and the last result.
-fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut out = None;
-    for _ in 0..runs {
-        let start = Instant::now();
-        out = Some(f());
-        best = best.min(start.elapsed().as_secs_f64());
-    }
-    (best, out.expect("one run"))
 }
 
 /// Walks and scans `path` with `jobs` threads, the way the command line does: (seconds, rows).

@@ -10,7 +10,6 @@ use std::fmt::Write as _;
 use std::fs;
 use std::io::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
 use meshvet::config::Settings;
 use meshvet::formats::{self, Format, ReadContext};
@@ -21,6 +20,9 @@ use meshvet::Mesh;
 #[path = "../tests/shapes/mod.rs"]
 #[allow(dead_code)]
 mod shapes;
+
+mod common;
+use common::best;
 
 fn main() {
     let dir = tempfile::tempdir().expect("temporary folder");
@@ -56,18 +58,6 @@ fn main() {
         "3mf / stl = {ratio:.2} (target <= 1.5: {})",
         if ratio <= 1.5 { "met" } else { "missed" }
     );
-}
-
-/// Best wall time of `runs`, and the last result.
-fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut best = f64::INFINITY;
-    let mut out = None;
-    for _ in 0..runs {
-        let start = Instant::now();
-        out = Some(f());
-        best = best.min(start.elapsed().as_secs_f64());
-    }
-    (best, out.expect("one run"))
 }
 
 /// Walks and scans `path` with one thread: the number of rows.

@@ -80,6 +80,17 @@ fn browse(browser: &Path, profile: &Path, url: &str, extra: &[&str]) -> Output {
 }
 
 /// Console messages in Chromium's log (`INFO:CONSOLE(12)] "message", source: ...`).
+/// The browser wrote a screenshot that is a PNG of some substance; prints where it is.
+fn assert_screenshot(shot: &Path) {
+    let png = std::fs::read(shot).expect("a screenshot");
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 20_000,
+        "{} bytes",
+        png.len()
+    );
+    println!("screenshot: {}", shot.display());
+}
+
 fn console_lines(stderr: &[u8]) -> Vec<String> {
     String::from_utf8_lossy(stderr)
         .lines()
@@ -355,13 +366,7 @@ fn the_report_of_the_sample_assets_works_in_a_browser() {
     );
     let console = console_lines(&run.stderr);
     assert!(console.is_empty(), "console messages: {console:#?}");
-    let png = std::fs::read(&shot).expect("a screenshot");
-    assert!(
-        png.starts_with(b"\x89PNG") && png.len() > 20_000,
-        "{} bytes",
-        png.len()
-    );
-    println!("screenshot: {}", shot.display());
+    assert_screenshot(&shot);
 }
 
 /// A tree without mesh names, holding a path too long for its cell at any width, a PLY file whose
@@ -457,13 +462,7 @@ fn the_table_fits_a_laptop_screen() {
             &file_url(&checked),
             &[&format!("--screenshot={}", shot.display()), &size],
         );
-        let png = std::fs::read(&shot).expect("a screenshot");
-        assert!(
-            png.starts_with(b"\x89PNG") && png.len() > 20_000,
-            "{} bytes",
-            png.len()
-        );
-        println!("screenshot: {}", shot.display());
+        assert_screenshot(&shot);
     }
 }
 

@@ -16,6 +16,9 @@ use meshvet::topology::{analyse, Options};
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipArchive, ZipWriter};
 
+#[allow(dead_code)]
+mod shapes;
+
 // ---------------------------------------------------------------------------------------------
 // Harness
 
@@ -107,15 +110,8 @@ fn mesh_object(id: u32, name: &str, positions: &[[f64; 3]], triangles: &[[u32; 3
 /// The unit tetrahedron (0,0,0), (1,0,0), (0,1,0), (0,0,1), wound outward: V 4, E 6, F 4, chi 2,
 /// volume 1/6.
 fn tetrahedron() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
-    (
-        vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-        ],
-        vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
-    )
+    let t = shapes::tetrahedron();
+    (t.positions, t.triangles)
 }
 
 /// The unit cube, 8 vertices and 12 triangles wound outward (volume 1); `open` leaves out the

@@ -16,7 +16,7 @@
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
-use super::built::{build, cross2, zero_area_bound, Built, PARALLEL_FACES};
+use super::built::{build, cross2, on_every_thread, zero_area_bound, Built};
 use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
@@ -50,7 +50,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
 
     // A big mesh on a pool of more than one thread runs the independent passes side by side (each
     // pass is the same as on one thread, so the analysis is too).
-    let big = table.triangle_count() >= PARALLEL_FACES && rayon::current_num_threads() > 1;
+    let big = on_every_thread(mesh.triangles.len());
 
     // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones), beside
     // 2. patches with orientation parity, then components.

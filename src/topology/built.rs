@@ -26,8 +26,14 @@ use crate::geometry::{dist2, norm2, normal};
 use crate::mesh::Mesh;
 use crate::weld::{weld, weld_parallel, Welded, INVALID};
 
-/// The fewest faces for which [`build`] uses every thread of the pool.
+/// The fewest faces for which [`build`] and the analysis use every thread of the pool.
 pub const PARALLEL_FACES: usize = 500_000;
+
+/// Whether a mesh of `faces` faces is built and analysed on every thread: it is big and the
+/// current pool has more than one.
+pub(crate) fn on_every_thread(faces: usize) -> bool {
+    faces >= PARALLEL_FACES && rayon::current_num_threads() > 1
+}
 
 /// What an analysis builds that a picture or a repair of the same mesh needs again: the weld and
 /// the Corner Table. A scan that draws or repairs keeps it ([`super::analyse_keeping`]).
@@ -102,7 +108,7 @@ pub(crate) fn welded_face(map: &[u32], t: &[u32; 3]) -> [u32; 3] {
 
 /// Welds `mesh` and builds the table of the faces that can be in one.
 pub fn build(mesh: &Mesh, options: &Options) -> (Built, LeftOut) {
-    let parallel = mesh.triangles.len() >= PARALLEL_FACES && rayon::current_num_threads() > 1;
+    let parallel = on_every_thread(mesh.triangles.len());
     let welded = if parallel {
         weld_parallel(&mesh.positions, options.weld_tolerance)
     } else {
