@@ -20,6 +20,8 @@ use super::built::{build, cross2, on_every_thread, zero_area_bound, Built};
 use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
+use rayon::prelude::*;
+
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::geometry::{bounding_box, by_position, cross, dist2, dot, sub};
 use crate::mesh::Mesh;
@@ -70,7 +72,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         (zero_area, area, count_duplicates(table))
     };
     let patches_pass = || {
-        let patches = walk_patches(table);
+        let patches = walk_patches(table, if big { rayon::current_num_threads() } else { 1 });
         let component_of_patch = join_patches(table, &patches, &built.source);
         (patches, component_of_patch)
     };
@@ -219,28 +221,154 @@ struct PatchCounts {
     inconsistent: usize,
 }
 
-fn walk_patches(table: &CornerTable) -> Patches {
-    // One word per face while walking: the patch in the low 31 bits, the parity in the top bit, so
-    // reaching a neighbour costs one memory access.
-    const FLIP: u32 = 1 << 31;
+/// One word per face while walking: the patch in the low 31 bits, the parity in the top bit, so
+/// reaching a neighbour costs one memory access.
+const FLIP: u32 = 1 << 31;
+
+/// The patches of `table`, walked on `runs` runs of faces side by side (one run: the plain walk).
+///
+/// Each run walks the patches of its own faces and keeps the manifold edges that leave it; the
+/// patches of different runs that such an edge links are then joined, with the parity between
+/// them, by a union-find. A flip is only defined up to flipping a whole patch, and every use of it
+/// (a shell's winding is its majority's, a tie broken by position) is the same either way; the
+/// patch numbers only feed [`join_patches`], which numbers components by input face. So any number
+/// of runs gives the same analysis.
+fn walk_patches(table: &CornerTable, runs: usize) -> Patches {
     let nt = table.triangle_count();
-    let o = table.opposites();
     let mut state = vec![UNSET; nt];
+    let run = nt.div_ceil(runs.max(1)).max(1);
+    let walked: Vec<RunPatches> = if runs > 1 {
+        state
+            .par_chunks_mut(run)
+            .enumerate()
+            .map(|(r, state)| walk_run(table, r * run, state))
+            .collect()
+    } else {
+        state
+            .chunks_mut(run)
+            .enumerate()
+            .map(|(r, state)| walk_run(table, r * run, state))
+            .collect()
+    };
+    if walked.len() <= 1 {
+        let RunPatches {
+            orientable, counts, ..
+        } = walked.into_iter().next().unwrap_or_default();
+        let flip = state.iter().map(|&s| s & FLIP != 0).collect();
+        for s in &mut state {
+            *s &= !FLIP;
+        }
+        return Patches {
+            of_face: state,
+            flip,
+            orientable,
+            counts,
+        };
+    }
+
+    // The runs' patches as one list (run `r`'s patch `p` is `first[r] + p`), joined across the
+    // edges between runs: `parity[x]` is whether `x`'s faces flip against its parent's.
+    let mut first = Vec::with_capacity(walked.len());
+    let mut total = 0u32;
+    for w in &walked {
+        first.push(total);
+        total += w.counts.len() as u32;
+    }
+    let mut parent: Vec<u32> = (0..total).collect();
+    let mut parity = vec![false; total as usize];
+    let mut conflicts = Vec::new();
+    let word = |t: u32| state[t as usize];
+    let patch = |t: u32| first[t as usize / run] + (word(t) & !FLIP);
+    for (r, w) in walked.iter().enumerate() {
+        for &(c, b) in &w.leaving {
+            let (t, u) = (CornerTable::t(c), CornerTable::t(b));
+            debug_assert_eq!(t as usize / run, r);
+            // Across a consistent edge both faces flip alike, across an inconsistent one not.
+            let flips_differ = (word(t) ^ word(u)) & FLIP != 0;
+            let apart = flips_differ == table.is_consistent(c);
+            let (x, y) = (patch(t), patch(u));
+            if !join_with_parity(&mut parent, &mut parity, x, y, apart) {
+                conflicts.push(x);
+            }
+        }
+    }
+
+    // One number per joined patch, in order of its first run patch; the parity of each run patch
+    // against that patch's root.
+    let mut number = vec![UNSET; total as usize];
+    let mut id_of = vec![UNSET; total as usize];
+    let mut to_root = vec![false; total as usize];
     let mut orientable = Vec::new();
-    let mut counts = Vec::new();
+    let mut counts: Vec<PatchCounts> = Vec::new();
+    let run_patches = walked
+        .iter()
+        .flat_map(|w| w.orientable.iter().zip(&w.counts));
+    for (x, (&ok, n)) in run_patches.enumerate() {
+        let (root, p) = find_with_parity(&mut parent, &mut parity, x as u32);
+        to_root[x] = p;
+        if number[root as usize] == UNSET {
+            number[root as usize] = orientable.len() as u32;
+            orientable.push(true);
+            counts.push(PatchCounts::default());
+        }
+        let id = number[root as usize] as usize;
+        id_of[x] = id as u32;
+        orientable[id] &= ok;
+        counts[id].add(n);
+    }
+    for x in conflicts {
+        orientable[id_of[x as usize] as usize] = false;
+    }
+    let mut flip = vec![false; nt];
+    state
+        .par_chunks_mut(run)
+        .zip(flip.par_chunks_mut(run))
+        .enumerate()
+        .for_each(|(r, (state, flip))| {
+            for (s, f) in state.iter_mut().zip(flip) {
+                let x = (first[r] + (*s & !FLIP)) as usize;
+                *f = (*s & FLIP != 0) != to_root[x];
+                *s = id_of[x];
+            }
+        });
+    Patches {
+        of_face: state,
+        flip,
+        orientable,
+        counts,
+    }
+}
+
+/// The patches a run of faces (`start..start + state.len()`) walks within itself.
+#[derive(Default)]
+struct RunPatches {
+    orientable: Vec<bool>,
+    counts: Vec<PatchCounts>,
+    /// Manifold edges to a face of another run, as corner pairs `(c, b)` with `c` in this run and
+    /// `c < b` (so each edge is kept by one run).
+    leaving: Vec<(u32, u32)>,
+}
+
+/// Walks the patches of faces `start..start + state.len()` through the manifold edges between
+/// them, numbering them from 0 in `state` (with the parity bit [`FLIP`]), and counts each patch's
+/// faces and edges: an edge to a face of another run is counted here when `c < b` and kept.
+fn walk_run(table: &CornerTable, start: usize, state: &mut [u32]) -> RunPatches {
+    let o = table.opposites();
+    let end = start + state.len();
+    let mut walked = RunPatches::default();
     let mut stack = Vec::new();
-    for seed in 0..nt {
+    for seed in 0..state.len() {
         if state[seed] != UNSET {
             continue;
         }
-        let id = orientable.len() as u32;
+        let id = walked.orientable.len() as u32;
         let mut ok = true;
         let mut n = PatchCounts::default();
         state[seed] = id;
-        stack.push(seed as u32);
+        stack.push((start + seed) as u32);
         while let Some(t) = stack.pop() {
             n.faces += 1;
-            let flip = state[t as usize] & FLIP;
+            let flip = state[t as usize - start] & FLIP;
             for c in 3 * t..3 * t + 3 {
                 let b = o[c as usize];
                 if b == c {
@@ -254,28 +382,69 @@ fn walk_patches(table: &CornerTable) -> Patches {
                 let consistent = table.is_consistent(c);
                 n.manifold_edges += usize::from(c < b);
                 n.inconsistent += usize::from(!consistent && c < b);
+                if !(start..end).contains(&u) {
+                    if c < b {
+                        walked.leaving.push((c, b));
+                    }
+                    continue;
+                }
                 let want = id | if consistent { flip } else { flip ^ FLIP };
-                if state[u] == UNSET {
-                    state[u] = want;
+                let s = &mut state[u - start];
+                if *s == UNSET {
+                    *s = want;
                     stack.push(u as u32);
-                } else if state[u] != want {
+                } else if *s != want {
                     ok = false;
                 }
             }
         }
-        orientable.push(ok);
-        counts.push(n);
+        walked.orientable.push(ok);
+        walked.counts.push(n);
     }
-    let flip = state.iter().map(|&s| s & FLIP != 0).collect();
-    for s in &mut state {
-        *s &= !FLIP;
+    walked
+}
+
+impl PatchCounts {
+    fn add(&mut self, other: &PatchCounts) {
+        self.faces += other.faces;
+        self.manifold_edges += other.manifold_edges;
+        self.border_edges += other.border_edges;
+        self.inconsistent += other.inconsistent;
     }
-    Patches {
-        of_face: state,
-        flip,
-        orientable,
-        counts,
+}
+
+/// The root of `x` in a union-find whose links carry a parity, and `x`'s parity against it; the
+/// path is pointed at the root.
+fn find_with_parity(parent: &mut [u32], parity: &mut [bool], x: u32) -> (u32, bool) {
+    let (mut root, mut p) = (x, false);
+    while parent[root as usize] != root {
+        p ^= parity[root as usize];
+        root = parent[root as usize];
     }
+    // Second pass: each node on the path gets its parity against the root, from `x` up.
+    let (mut y, mut py) = (x, p);
+    while parent[y as usize] != y {
+        let (up, p_up) = (parent[y as usize], py ^ parity[y as usize]);
+        parent[y as usize] = root;
+        parity[y as usize] = py;
+        (y, py) = (up, p_up);
+    }
+    (root, p)
+}
+
+/// Joins the sets of `x` and `y` with `x`'s faces flipping against `y`'s when `apart`; `false` when
+/// they were one set already with the other parity (the joined patch is not orientable).
+fn join_with_parity(parent: &mut [u32], parity: &mut [bool], x: u32, y: u32, apart: bool) -> bool {
+    let (rx, px) = find_with_parity(parent, parity, x);
+    let (ry, py) = find_with_parity(parent, parity, y);
+    if rx == ry {
+        return (px != py) == apart;
+    }
+    // x = rx ^ px, y = ry ^ py, and x ^ y = apart: so rx ^ ry = apart ^ px ^ py.
+    let (low, high) = (rx.min(ry), rx.max(ry));
+    parent[high as usize] = low;
+    parity[high as usize] = apart != (px != py);
+    true
 }
 
 /// Component of each patch: patches sharing a non-manifold edge are one component. Components are
@@ -919,6 +1088,98 @@ mod tests {
                 duplicates_by_corners(&table),
                 "{faces:?}"
             );
+        }
+    }
+
+    /// Walking patches on runs of faces and joining them across the runs gives the patches of one
+    /// walk: the same faces in each, the same counts and orientability, and flips that agree up to
+    /// flipping a whole patch. The mesh has every kind of patch: a cube with one face wound the other
+    /// way (inconsistent edges), a Moebius strip (not orientable: its conflict is only seen when
+    /// runs are joined, since each run holds part of it), three faces on one edge (non-manifold),
+    /// and a lone face; its faces come in an order that crosses runs often.
+    #[test]
+    fn patches_walked_in_runs_are_the_patches_of_one_walk() {
+        let mut positions = CUBE_POINTS.to_vec();
+        let mut triangles = CUBE.to_vec();
+        triangles[5].swap(1, 2);
+        let strip = 9u32;
+        let base = positions.len() as u32;
+        for i in 0..strip {
+            positions.push([10.0 + i as f64, 0.0, 0.0]);
+            positions.push([10.0 + i as f64, 1.0, 0.0]);
+        }
+        let (a, b) = (
+            |i: u32| base + 2 * (i % strip),
+            |i: u32| base + 2 * (i % strip) + 1,
+        );
+        for i in 0..strip - 1 {
+            triangles.push([a(i), b(i), b(i + 1)]);
+            triangles.push([a(i), b(i + 1), a(i + 1)]);
+        }
+        // The half twist: the last quad joins a(8) to b(0) and b(8) to a(0).
+        triangles.push([a(strip - 1), b(strip - 1), a(0)]);
+        triangles.push([a(strip - 1), a(0), b(0)]);
+        let base = positions.len() as u32;
+        positions.extend([
+            [0.0, 0.0, 5.0],
+            [1.0, 0.0, 5.0],
+            [0.0, 1.0, 5.0],
+            [0.0, -1.0, 5.0],
+        ]);
+        positions.extend([
+            [0.5, 0.5, 6.0],
+            [20.0, 0.0, 0.0],
+            [21.0, 0.0, 0.0],
+            [20.0, 1.0, 0.0],
+        ]);
+        for apex in [2, 3, 4] {
+            triangles.push([base, base + 1, base + apex]);
+        }
+        triangles.push([base + 5, base + 6, base + 7]);
+        // Interleave the parts' faces, so runs cut every patch.
+        let order: Vec<usize> = (0..triangles.len())
+            .map(|i| (i * 7) % triangles.len())
+            .collect();
+        let triangles: Vec<[u32; 3]> = order.iter().map(|&i| triangles[i]).collect();
+        let mesh = Mesh::new(positions, triangles);
+        let (built, _) = build(&mesh, &Options::default());
+        let one = walk_patches(&built.table, 1);
+        assert_eq!(
+            one.orientable.iter().filter(|&&o| !o).count(),
+            1,
+            "the strip"
+        );
+        assert!(
+            one.counts.iter().any(|n| n.inconsistent == 1),
+            "the cube's face"
+        );
+        assert_eq!(
+            one.counts.len(),
+            1 + 1 + 3 + 1,
+            "cube, strip, three faces, lone face"
+        );
+        for runs in 2..=7 {
+            let many = walk_patches(&built.table, runs);
+            assert_eq!(many.counts.len(), one.counts.len(), "{runs} runs");
+            // Patch numbers may differ: match them by face.
+            let mut to_one = vec![UNSET; many.counts.len()];
+            let mut flipped = vec![None; many.counts.len()];
+            for (t, (&p, &q)) in many.of_face.iter().zip(&one.of_face).enumerate() {
+                let (p, q) = (p as usize, q as usize);
+                assert!(to_one[p] == UNSET || to_one[p] == q as u32, "{runs} runs");
+                to_one[p] = q as u32;
+                assert_eq!(many.orientable[p], one.orientable[q], "{runs} runs");
+                assert_eq!(
+                    (many.counts[p].faces, many.counts[p].manifold_edges),
+                    (one.counts[q].faces, one.counts[q].manifold_edges),
+                );
+                assert_eq!(many.counts[p].border_edges, one.counts[q].border_edges);
+                assert_eq!(many.counts[p].inconsistent, one.counts[q].inconsistent);
+                if one.orientable[q] {
+                    let f = many.flip[t] != one.flip[t];
+                    assert_eq!(*flipped[p].get_or_insert(f), f, "{runs} runs, face {t}");
+                }
+            }
         }
     }
 }
