@@ -20,6 +20,8 @@ use super::built::{build, cross2, on_every_thread, zero_area_bound, Built};
 use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::{Analysis, Component, Options, Role, Shell};
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+
 use rayon::prelude::*;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
@@ -53,6 +55,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     // A big mesh on a pool of more than one thread runs the independent passes side by side (each
     // pass is the same as on one thread, so the analysis is too).
     let big = on_every_thread(mesh.triangles.len());
+    let runs = if big { rayon::current_num_threads() } else { 1 };
 
     // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones), beside
     // 2. patches with orientation parity, then components.
@@ -72,7 +75,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         (zero_area, area, count_duplicates(table))
     };
     let patches_pass = || {
-        let patches = walk_patches(table, if big { rayon::current_num_threads() } else { 1 });
+        let patches = walk_patches(table, runs);
         let component_of_patch = join_patches(table, &patches, &built.source);
         (patches, component_of_patch)
     };
@@ -123,7 +126,7 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
 
     // 3. Fans: non-manifold vertices, vertices per component, holes; beside 5. the faces that
     // meet, within a component and between components.
-    let fans_pass = || walk_fans(table, &component_of);
+    let fans_pass = || walk_fans(table, &component_of, runs);
     let search_pass = || {
         options.intersections.map(|search| {
             let component_of = |t: u32| component[t as usize];
@@ -541,6 +544,7 @@ fn duplicates_at_nonmanifold_edges(table: &CornerTable) -> usize {
     count
 }
 
+#[derive(Debug, PartialEq)]
 struct Fans {
     nonmanifold_vertices: usize,
     used_vertices: usize,
@@ -564,100 +568,74 @@ enum FanEnd {
 }
 
 /// Walks the fan of every corner: the faces around `v(c)` linked through manifold edges at `v(c)`.
-/// Works on any windings: each step finds the corner at the vertex in the next face by its vertex.
-fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans {
+/// Works on any windings (see the walk in [`fans_of_run`]).
+///
+/// On `runs` runs of corners side by side: a run walks every fan with a corner in it and keeps the
+/// fans whose lowest corner is its own (in order of that corner, as one walk of all corners finds
+/// them), so each fan is kept once and the runs' lists joined are the one-run list.
+fn walk_fans(
+    table: &CornerTable,
+    component_of: &(impl Fn(u32) -> usize + Sync),
+    runs: usize,
+) -> Fans {
     let nc = table.corner_count();
     let nv = table.vertex_count();
+    // Runs of whole 64-corner words, so each run has its own words of `visited`.
+    let run = nc.div_ceil(runs.max(1)).div_ceil(64).max(1) * 64;
+    let shared = runs > 1;
     let mut visited = vec![0u64; nc.div_ceil(64)];
-    let mut fan_count = vec![0u32; nv];
-    let mut first_component = vec![UNSET; nv];
-    let mut vertices_per_component = Vec::new();
-    // (vertex, component) of every fan at a vertex with two or more fans.
-    let mut multi: Vec<(u32, u32)> = Vec::new();
-    // Border edges whose ends are joined at a vertex, as corner pairs; and lone ends (a fan that ends
-    // at a border on one side and at a non-manifold edge on the other) as (vertex, component, corner).
-    let mut joins: Vec<(u32, u32)> = Vec::new();
-    let mut lone: Vec<(u32, u32, u32)> = Vec::new();
-    let mut fans: Vec<(u32, u32)> = Vec::new();
-
-    // From the corner at the vertex in one face, leave through the edge opposite `exit` (`p(c)` or
-    // `n(c)`), find the corner at the vertex in the face across, and go on through its other edge at
-    // the vertex. With the pair consistent, leaving through the edge opposite `p(c)` arrives at
-    // `p(o)`; an inconsistent pair mirrors that. So no step re-reads `V`.
-    let walk = |start: u32, exit_is_p: bool, visited: &mut [u64]| -> FanEnd {
-        let mut exit = if exit_is_p {
-            CornerTable::p(start)
-        } else {
-            CornerTable::n(start)
-        };
-        let mut exit_is_p = exit_is_p;
-        loop {
-            let o = table.o(exit);
-            if o == exit {
-                return FanEnd::Border(exit);
-            }
-            if o == NON_MANIFOLD {
-                return FanEnd::NonManifold;
-            }
-            exit_is_p = exit_is_p == table.is_consistent(exit);
-            let (d, next) = if exit_is_p {
-                (CornerTable::p(o), CornerTable::n(o))
-            } else {
-                (CornerTable::n(o), CornerTable::p(o))
-            };
-            debug_assert_eq!(table.v(d), table.v(start));
-            if test_and_set(visited, d) {
-                return FanEnd::Closed;
-            }
-            exit = next;
-        }
+    let fan_count: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(0)).collect();
+    let first_component: Vec<AtomicU32> = (0..nv).map(|_| AtomicU32::new(UNSET)).collect();
+    let walk_run = |(r, visited): (usize, &mut [u64])| {
+        fans_of_run(
+            table,
+            component_of,
+            r * run,
+            nc.min((r + 1) * run),
+            visited,
+            &|v| bump(&fan_count[v as usize], shared),
+            &|v, comp| first_component[v as usize].store(comp, Relaxed),
+        )
     };
-
-    // The unvisited corners in order, found a word of `visited` at a time (most corners are
-    // visited by the walk of a fan started at an earlier one).
-    let mut next = 0usize;
-    while next < nc {
-        let word = visited[next / 64] | ((1u64 << (next % 64)) - 1);
-        if word == u64::MAX {
-            next = (next / 64 + 1) * 64;
-            continue;
+    let walked: Vec<RunFans> = if shared {
+        visited
+            .par_chunks_mut(run / 64)
+            .enumerate()
+            .map(walk_run)
+            .collect()
+    } else {
+        visited
+            .chunks_mut(run / 64)
+            .enumerate()
+            .map(walk_run)
+            .collect()
+    };
+    drop(visited);
+    let mut vertices_per_component = Vec::new();
+    let (mut multi, mut joins, mut lone, mut fans) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for w in walked {
+        if vertices_per_component.len() < w.vertices_per_component.len() {
+            vertices_per_component.resize(w.vertices_per_component.len(), 0);
         }
-        let c = ((next / 64) * 64 + (!word).trailing_zeros() as usize) as u32;
-        if c as usize >= nc {
-            break;
+        for (n, m) in vertices_per_component
+            .iter_mut()
+            .zip(&w.vertices_per_component)
+        {
+            *n += m;
         }
-        next = c as usize + 1;
-        test_and_set(&mut visited, c);
-        let v = table.v(c) as usize;
-        let comp = component_of(CornerTable::t(c));
-        if vertices_per_component.len() <= comp {
-            vertices_per_component.resize(comp + 1, 0);
-        }
-        vertices_per_component[comp] += 1;
-        fans.push((v as u32, comp as u32));
-        fan_count[v] += 1;
-        match fan_count[v] {
-            1 => first_component[v] = comp as u32,
-            2 => {
-                multi.push((v as u32, first_component[v]));
-                multi.push((v as u32, comp as u32));
+        // A vertex's second fan adds its first one (its component known now every run is done).
+        for (v, comp, count) in w.repeats {
+            if count == 1 {
+                multi.push((v, first_component[v as usize].load(Relaxed)));
             }
-            _ => multi.push((v as u32, comp as u32)),
+            multi.push((v, comp));
         }
-        let ahead = walk(c, true, &mut visited);
-        if ahead == FanEnd::Closed {
-            continue;
-        }
-        let behind = walk(c, false, &mut visited);
-        match (ahead, behind) {
-            (FanEnd::Border(x), FanEnd::Border(y)) => joins.push((x, y)),
-            (FanEnd::Border(x), _) | (_, FanEnd::Border(x)) => {
-                lone.push((v as u32, comp as u32, x))
-            }
-            _ => {}
-        }
+        joins.extend(w.joins);
+        lone.extend(w.lone);
+        fans.extend(w.fans);
     }
-
+    let fan_count: Vec<u32> = fan_count.into_iter().map(AtomicU32::into_inner).collect();
     let used_vertices = fan_count.iter().filter(|&&n| n > 0).count();
     let nonmanifold_vertices = fan_count.iter().filter(|&&n| n > 1).count();
 
@@ -676,7 +654,14 @@ fn walk_fans(table: &CornerTable, component_of: &impl Fn(u32) -> usize) -> Fans 
     // it cannot choose the next border edge, so the lone ends of one component at one vertex are one
     // loop; lone ends of different components meeting at a vertex stay apart (a component's holes
     // are its own).
-    let border: Vec<u32> = (0..nc as u32).filter(|&c| table.is_border(c)).collect();
+    let border: Vec<u32> = if shared {
+        (0..nc as u32)
+            .into_par_iter()
+            .filter(|&c| table.is_border(c))
+            .collect()
+    } else {
+        (0..nc as u32).filter(|&c| table.is_border(c)).collect()
+    };
     let index = |c: u32| border.binary_search(&c).expect("border corner") as u32;
     let mut parent: Vec<u32> = (0..border.len() as u32).collect();
     for &(x, y) in &joins {
@@ -708,6 +693,139 @@ struct Faces<'a> {
     table: &'a CornerTable,
     points: &'a [[f64; 3]],
     patches: &'a Patches,
+}
+
+/// What a run of corners finds of the fans it keeps.
+struct RunFans {
+    vertices_per_component: Vec<usize>,
+    /// `(vertex, component, fans at the vertex before)` of every fan that is not its vertex's
+    /// first.
+    repeats: Vec<(u32, u32, u32)>,
+    /// Border edges whose ends are joined at a vertex, as corner pairs.
+    joins: Vec<(u32, u32)>,
+    /// Lone ends (a fan that ends at a border on one side and at a non-manifold edge on the
+    /// other), as `(vertex, component, corner)`.
+    lone: Vec<(u32, u32, u32)>,
+    fans: Vec<(u32, u32)>,
+}
+
+/// The fans with a corner in `lo..hi` (whose bits of `visited` start at `lo`), keeping those whose
+/// lowest corner is in the run; `count(v)` counts a kept fan at `v`, returning the count before,
+/// and `first(v, comp)` records the component of a vertex's first one.
+fn fans_of_run(
+    table: &CornerTable,
+    component_of: &impl Fn(u32) -> usize,
+    lo: usize,
+    hi: usize,
+    visited: &mut [u64],
+    count: &impl Fn(u32) -> u32,
+    first: &impl Fn(u32, u32),
+) -> RunFans {
+    let mut found = RunFans {
+        vertices_per_component: Vec::new(),
+        repeats: Vec::new(),
+        joins: Vec::new(),
+        lone: Vec::new(),
+        fans: Vec::new(),
+    };
+    let (lo32, hi32) = (lo as u32, hi as u32);
+
+    // From the corner at the vertex in one face, leave through the edge opposite `exit` (`p(c)` or
+    // `n(c)`), find the corner at the vertex in the face across, and go on through its other edge at
+    // the vertex. With the pair consistent, leaving through the edge opposite `p(c)` arrives at
+    // `p(o)`; an inconsistent pair mirrors that. So no step re-reads `V`. A fan is a cycle or a
+    // path of corners, so a walk ends at a border, at a non-manifold edge or back at its start;
+    // `lowest` takes every corner passed.
+    let walk = |start: u32, exit_is_p: bool, visited: &mut [u64], lowest: &mut u32| -> FanEnd {
+        let mut exit = if exit_is_p {
+            CornerTable::p(start)
+        } else {
+            CornerTable::n(start)
+        };
+        let mut exit_is_p = exit_is_p;
+        loop {
+            let o = table.o(exit);
+            if o == exit {
+                return FanEnd::Border(exit);
+            }
+            if o == NON_MANIFOLD {
+                return FanEnd::NonManifold;
+            }
+            exit_is_p = exit_is_p == table.is_consistent(exit);
+            let (d, next) = if exit_is_p {
+                (CornerTable::p(o), CornerTable::n(o))
+            } else {
+                (CornerTable::n(o), CornerTable::p(o))
+            };
+            debug_assert_eq!(table.v(d), table.v(start));
+            if d == start {
+                return FanEnd::Closed;
+            }
+            *lowest = (*lowest).min(d);
+            if (lo32..hi32).contains(&d) {
+                test_and_set(visited, d - lo32);
+            }
+            exit = next;
+        }
+    };
+
+    // The unvisited corners in order, found a word of `visited` at a time (most corners are
+    // visited by the walk of a fan started at an earlier one).
+    let n = hi - lo;
+    let mut next = 0usize;
+    while next < n {
+        let word = visited[next / 64] | ((1u64 << (next % 64)) - 1);
+        if word == u64::MAX {
+            next = (next / 64 + 1) * 64;
+            continue;
+        }
+        let i = (next / 64) * 64 + (!word).trailing_zeros() as usize;
+        if i >= n {
+            break;
+        }
+        next = i + 1;
+        test_and_set(visited, i as u32);
+        let c = (lo + i) as u32;
+        let mut lowest = c;
+        let ahead = walk(c, true, visited, &mut lowest);
+        let behind = if ahead == FanEnd::Closed {
+            FanEnd::Closed
+        } else {
+            walk(c, false, visited, &mut lowest)
+        };
+        if lowest < lo32 {
+            // An earlier run keeps it.
+            continue;
+        }
+        let v = table.v(c);
+        let comp = component_of(CornerTable::t(c));
+        if found.vertices_per_component.len() <= comp {
+            found.vertices_per_component.resize(comp + 1, 0);
+        }
+        found.vertices_per_component[comp] += 1;
+        found.fans.push((v, comp as u32));
+        match count(v) {
+            0 => first(v, comp as u32),
+            before => found.repeats.push((v, comp as u32, before)),
+        }
+        match (ahead, behind) {
+            (FanEnd::Border(x), FanEnd::Border(y)) => found.joins.push((x, y)),
+            (FanEnd::Border(x), _) | (_, FanEnd::Border(x)) => found.lone.push((v, comp as u32, x)),
+            _ => {}
+        }
+    }
+    found
+}
+
+/// Adds one to `n`, returning what it was: atomically when `shared` between threads.
+fn bump(n: &AtomicU32, shared: bool) -> u32 {
+    if shared {
+        n.fetch_add(1, Relaxed)
+    } else {
+        let x = n.load(Relaxed);
+        n.store(x + 1, Relaxed);
+        x
+    }
 }
 
 /// Sets bit `i`, returning whether it was set before.
@@ -1091,18 +1209,19 @@ mod tests {
         }
     }
 
-    /// Walking patches on runs of faces and joining them across the runs gives the patches of one
-    /// walk: the same faces in each, the same counts and orientability, and flips that agree up to
-    /// flipping a whole patch. The mesh has every kind of patch: a cube with one face wound the other
-    /// way (inconsistent edges), a Moebius strip (not orientable: its conflict is only seen when
-    /// runs are joined, since each run holds part of it), three faces on one edge (non-manifold),
-    /// and a lone face; its faces come in an order that crosses runs often.
-    #[test]
-    fn patches_walked_in_runs_are_the_patches_of_one_walk() {
+    /// A mesh with every kind of patch and fan, numbered so that runs of faces or corners cut them:
+    /// a cube with one face wound the other way (inconsistent edges), a Moebius strip (not
+    /// orientable: each run holds part of it, so only the join sees the conflict), three faces on
+    /// one edge (non-manifold), a lone face, two triangles pinched at a vertex, and a 12 x 12 grid
+    /// with 17 faces left out (two of them split the fan of a border vertex in two). Vertices are renumbered by a
+    /// stride and faces interleaved, so the faces around a vertex sit far apart in the table.
+    fn mixed_mesh() -> Mesh {
         let mut positions = CUBE_POINTS.to_vec();
         let mut triangles = CUBE.to_vec();
+        let mut parts = vec![0];
         triangles[5].swap(1, 2);
         let strip = 9u32;
+        parts.push(positions.len());
         let base = positions.len() as u32;
         for i in 0..strip {
             positions.push([10.0 + i as f64, 0.0, 0.0]);
@@ -1119,6 +1238,7 @@ mod tests {
         // The half twist: the last quad joins a(8) to b(0) and b(8) to a(0).
         triangles.push([a(strip - 1), b(strip - 1), a(0)]);
         triangles.push([a(strip - 1), a(0), b(0)]);
+        parts.push(positions.len());
         let base = positions.len() as u32;
         positions.extend([
             [0.0, 0.0, 5.0],
@@ -1136,12 +1256,78 @@ mod tests {
             triangles.push([base, base + 1, base + apex]);
         }
         triangles.push([base + 5, base + 6, base + 7]);
-        // Interleave the parts' faces, so runs cut every patch.
-        let order: Vec<usize> = (0..triangles.len())
-            .map(|i| (i * 7) % triangles.len())
+        // The pinched pair: two triangles sharing vertex `base`.
+        parts.push(positions.len());
+        let base = positions.len() as u32;
+        positions.extend([[30.0, 0.0, 0.0], [31.0, 0.0, 0.0], [30.0, 1.0, 0.0]]);
+        positions.extend([[29.0, 0.0, 0.0], [30.0, -1.0, 0.0]]);
+        triangles.push([base, base + 1, base + 2]);
+        triangles.push([base, base + 3, base + 4]);
+        // The grid, 13 x 13 vertices at z = 9, with every 17th face left out.
+        parts.push(positions.len());
+        let base = positions.len() as u32;
+        let at = |i: u32, j: u32| base + 13 * j + i;
+        for j in 0..13 {
+            for i in 0..13 {
+                positions.push([i as f64, j as f64, 9.0]);
+            }
+        }
+        let mut grid = Vec::new();
+        for j in 0..12 {
+            for i in 0..12 {
+                grid.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                grid.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        triangles.extend(
+            grid.iter()
+                .enumerate()
+                .filter(|(k, _)| k % 17 != 5)
+                .map(|(_, t)| *t),
+        );
+        // Renumber the vertices round-robin over the parts (each part's k-th vertex, part by part,
+        // then the (k+1)-th), and interleave the faces.
+        parts.push(positions.len());
+        let mut new = vec![0u32; positions.len()];
+        let mut next = 0;
+        for k in 0.. {
+            let mut any = false;
+            for w in parts.windows(2) {
+                if w[0] + k < w[1] {
+                    new[w[0] + k] = next;
+                    next += 1;
+                    any = true;
+                }
+            }
+            if !any {
+                break;
+            }
+        }
+        let mut renumbered = vec![[0.0; 3]; positions.len()];
+        for (v, p) in positions.iter().enumerate() {
+            renumbered[new[v] as usize] = *p;
+        }
+        assert_eq!(gcd(7, triangles.len()), 1);
+        let triangles: Vec<[u32; 3]> = (0..triangles.len())
+            .map(|i| triangles[(i * 7) % triangles.len()].map(|v| new[v as usize]))
             .collect();
-        let triangles: Vec<[u32; 3]> = order.iter().map(|&i| triangles[i]).collect();
-        let mesh = Mesh::new(positions, triangles);
+        Mesh::new(renumbered, triangles)
+    }
+
+    fn gcd(a: usize, b: usize) -> usize {
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
+    }
+
+    /// Walking patches on runs of faces and joining them across the runs gives the patches of one
+    /// walk: the same faces in each, the same counts and orientability, and flips that agree up to
+    /// flipping a whole patch.
+    #[test]
+    fn patches_walked_in_runs_are_the_patches_of_one_walk() {
+        let mesh = mixed_mesh();
         let (built, _) = build(&mesh, &Options::default());
         let one = walk_patches(&built.table, 1);
         assert_eq!(
@@ -1155,8 +1341,8 @@ mod tests {
         );
         assert_eq!(
             one.counts.len(),
-            1 + 1 + 3 + 1,
-            "cube, strip, three faces, lone face"
+            1 + 1 + 3 + 1 + 2 + 1,
+            "cube, strip, three faces, lone face, pinched pair, grid"
         );
         for runs in 2..=7 {
             let many = walk_patches(&built.table, runs);
@@ -1180,6 +1366,32 @@ mod tests {
                     assert_eq!(*flipped[p].get_or_insert(f), f, "{runs} runs, face {t}");
                 }
             }
+        }
+    }
+
+    /// Walking fans on runs of corners gives the fans of one walk: the same list in the same
+    /// order, the same holes, vertex counts and non-manifold vertices. The mixed mesh's table has
+    /// about 1,000 corners, so it is cut in runs of 64 to 192 corners.
+    #[test]
+    fn fans_walked_in_runs_are_the_fans_of_one_walk() {
+        let mesh = mixed_mesh();
+        let (built, _) = build(&mesh, &Options::default());
+        let patches = walk_patches(&built.table, 1);
+        let component_of_patch = join_patches(&built.table, &patches, &built.source);
+        let component_of =
+            |t: u32| component_of_patch[patches.of_face[t as usize] as usize] as usize;
+        let one = walk_fans(&built.table, &component_of, 1);
+        // The pinched pair's vertex, both ends of the edge of three faces (each face a fan there),
+        // and the grid's vertices (2, 0) and (0, 8) (counted by a separate script).
+        assert_eq!(one.nonmanifold_vertices, 1 + 2 + 2);
+        assert!(one.hole_corners.len() > 2);
+        assert!(!one.split_components.is_empty());
+        for runs in 2..=16 {
+            assert_eq!(
+                walk_fans(&built.table, &component_of, runs),
+                one,
+                "{runs} runs"
+            );
         }
     }
 }
