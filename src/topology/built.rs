@@ -8,13 +8,16 @@
 //! neighbours close in memory (the walks are bound by cache misses, not arithmetic). It made the
 //! analysis of a shuffled 1M-face torus several times faster.
 //!
-//! Two passes over the input faces do it all: the first welds each face's corners, sorts it into
-//! invalid, degenerate or kept, and counts the kept ones by lowest vertex and by the lower vertex of
-//! the edge opposite that one; the second puts each kept face in its place and its lowest corner in
-//! its bucket, which is everything the table's pairing reads (no copy of the faces in input order,
-//! no sort of corners). A big mesh (at least [`PARALLEL_FACES`] faces, on a pool of more than one
-//! thread) has its weld, both passes (each thread on its own run of input faces, slots counted so
-//! that the order is the one-thread order) and the pairing spread over the pool.
+//! Three passes over the faces do it all. The first welds each face's corners (keeping the welded
+//! face), sorts it into invalid, degenerate or kept, and counts the kept ones by lowest vertex. The
+//! second gathers the welded kept faces in that order and marks their vertices as used (in table
+//! order, so close in memory). The third buckets each face's lowest corner by its middle vertex,
+//! which is everything the table's pairing reads (no sort of corners). Each input face's corners
+//! are looked up in the weld once: on a shuffled mesh those lookups are cache misses.
+//!
+//! A big mesh (at least [`PARALLEL_FACES`] faces, on a pool of more than one thread) has its weld,
+//! the passes (each thread on its own run of faces, slots counted so that the order is the
+//! one-thread order) and the pairing spread over the pool.
 
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 
@@ -163,18 +166,22 @@ fn group(
     let run = faces.len().div_ceil(threads).max(1);
 
     // Pass 1, per run of input faces: each face welded and sorted into invalid, degenerate or
-    // kept, and the kept ones' input indices sorted by lowest vertex (a counting sort of the run).
+    // kept, and the kept ones' indices in the run sorted by lowest vertex (a counting sort).
     let referenced: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
-    let sort_run = |(r, run_faces): (usize, &[[u32; 3]])| {
+    let sort_run = |run_faces: &[[u32; 3]]| {
         let mut left = LeftOut::default();
         let mut lowest = Bounds::new(n);
-        let mut lows = Vec::with_capacity(run_faces.len());
+        let mut kept = Vec::with_capacity(run_faces.len());
         for t in run_faces {
             let w = welded(t);
-            for &x in w.iter().filter(|&&x| x != INVALID) {
-                referenced[x as usize].store(true, Relaxed);
+            // A kept face's vertices are marked in pass 2, in table order (close in memory).
+            let kind = FaceKind::of(&w);
+            if kind != FaceKind::Table {
+                for &x in w.iter().filter(|&&x| x != INVALID) {
+                    referenced[x as usize].store(true, Relaxed);
+                }
             }
-            let low = match FaceKind::of(&w) {
+            let low = match kind {
                 FaceKind::Invalid => {
                     left.invalid_faces += 1;
                     NOT_KEPT
@@ -189,45 +196,46 @@ fn group(
                     low
                 }
             };
-            lows.push(low);
+            kept.push(if low == NOT_KEPT { [NOT_KEPT; 3] } else { w });
         }
         lowest.open();
         let mut order = vec![0u32; lowest.total()];
-        for (i, &low) in lows.iter().enumerate() {
-            if low != NOT_KEPT {
-                order[lowest.slot(low as usize)] = (r * run + i) as u32;
+        for (i, w) in kept.iter().enumerate() {
+            if w[0] != NOT_KEPT {
+                let low = w[0].min(w[1]).min(w[2]);
+                order[lowest.slot(low as usize)] = i as u32;
             }
         }
         Sorted {
             left,
             order,
             bounds: lowest.into_bounds(),
+            welded: kept,
         }
     };
     let mut runs: Vec<Sorted> = if parallel {
-        faces.par_chunks(run).enumerate().map(sort_run).collect()
+        faces.par_chunks(run).map(sort_run).collect()
     } else {
-        faces.chunks(run).enumerate().map(sort_run).collect()
+        faces.chunks(run).map(sort_run).collect()
     };
     let mut left = LeftOut::default();
     for r in &runs {
         left.invalid_faces += r.left.invalid_faces;
         left.degenerate_faces += r.left.degenerate_faces;
     }
-    left.unreferenced_vertices = referenced.iter().filter(|r| !r.load(Relaxed)).count();
-    drop(referenced);
 
-    // Pass 2, in table order: each face read from its input index (gathers, written in order,
-    // runs one after the other within a vertex), and the index replaced by the caller's name.
+    // Pass 2, in table order: each welded face read from its run (gathers, written in order,
+    // runs one after the other within a vertex), and its index replaced by the caller's name.
     let (table_faces, names, lowest) = if runs.len() == 1 {
         let Sorted {
             order: mut names,
             bounds,
+            welded: kept,
             ..
         } = runs.pop().expect("one run");
         let mut table_faces = Vec::with_capacity(names.len());
         for i in &mut names {
-            table_faces.push(welded(&faces[*i as usize]));
+            table_faces.push(kept[*i as usize]);
             *i = name(*i as usize);
         }
         (table_faces, names, bounds)
@@ -252,10 +260,10 @@ fn group(
         pieces.into_par_iter().for_each(|(vertices, f, m)| {
             let mut slot = 0;
             for x in vertices {
-                for r in &runs {
+                for (k, r) in runs.iter().enumerate() {
                     for &i in &r.order[r.bounds[x] as usize..r.bounds[x + 1] as usize] {
-                        f[slot] = welded(&faces[i as usize]);
-                        m[slot] = name(i as usize);
+                        f[slot] = r.welded[i as usize];
+                        m[slot] = name(k * run + i as usize);
                         slot += 1;
                     }
                 }
@@ -263,6 +271,21 @@ fn group(
         });
         (table_faces, names, lowest)
     };
+
+    // The kept faces' vertices marked as used, in table order (close in memory; in the gather's
+    // loop these stores held up its cache misses).
+    let mark = |faces: &[[u32; 3]]| {
+        for x in faces.iter().flatten() {
+            referenced[*x as usize].store(true, Relaxed);
+        }
+    };
+    if parallel {
+        table_faces.par_chunks(PIECE).for_each(mark);
+    } else {
+        mark(&table_faces);
+    }
+    left.unreferenced_vertices = referenced.iter().filter(|r| !r.load(Relaxed)).count();
+    drop(referenced);
 
     // Pass 3, per run of table faces (so mostly in cache): each face's lowest corner by its
     // middle vertex.
@@ -290,8 +313,11 @@ const PIECE: usize = 1 << 16;
 /// at `order[bounds[x]..bounds[x + 1]]`.
 struct Sorted {
     left: LeftOut,
+    /// Indices into the run, by lowest vertex.
     order: Vec<u32>,
     bounds: Vec<u32>,
+    /// Each face of the run, welded; `[NOT_KEPT; 3]` for one left out.
+    welded: Vec<[u32; 3]>,
 }
 
 /// Cuts vertices `0..n` (with `bounds[x]..bounds[x + 1]` the faces of `x`) into ranges of whole
@@ -318,7 +344,9 @@ mod tests {
 
     /// Faces 0-1-2 (kept), 0-0-1 (degenerate), 3-1-2 with vertex 3 at NaN (invalid), and vertex 4
     /// used by nothing; vertex 5 sits at vertex 0's position and welds onto it, so face 5-2-1 is kept
-    /// as 0-2-1. The table holds faces 0 and 3, by lowest vertex (both 0: input order).
+    /// as 0-2-1; vertex 6 is used only by the degenerate face 6-6-2, which still counts as a use
+    /// (kept faces mark their vertices in a later pass than the others). The table holds faces 0
+    /// and 3, by lowest vertex (both 0: input order).
     #[test]
     fn faces_are_sorted_into_table_and_left_out() {
         let nan = f64::NAN;
@@ -329,14 +357,16 @@ mod tests {
             [nan, 0.0, 0.0],
             [5.0, 5.0, 5.0],
             [0.0, 0.0, 0.0],
+            [7.0, 7.0, 7.0],
         ];
-        let mesh = Mesh::new(positions, vec![[0, 1, 2], [0, 0, 1], [3, 1, 2], [5, 2, 1]]);
+        let faces = vec![[0, 1, 2], [0, 0, 1], [3, 1, 2], [5, 2, 1], [6, 6, 2]];
+        let mesh = Mesh::new(positions, faces);
         let (built, left) = build(&mesh, &Options::default());
         assert_eq!(
             left,
             LeftOut {
                 invalid_faces: 1,
-                degenerate_faces: 1,
+                degenerate_faces: 2,
                 unreferenced_vertices: 1,
             }
         );
