@@ -233,28 +233,35 @@ fn number_parallel(link: &mut [u32], positions: &[[f64; 3]]) -> (Vec<u32>, Vec<[
             Some(start)
         })
         .collect();
+    // Each piece writes its firsts' positions straight into its own part of the output.
     let mut map = vec![0u32; link.len()];
-    let welded: Vec<Vec<[f64; 3]>> = map
-        .par_chunks_mut(PIECE)
+    let mut welded = vec![[0.0f64; 3]; counts.iter().map(|&c| c as usize).sum()];
+    let mut parts = Vec::with_capacity(counts.len());
+    let mut rest = welded.as_mut_slice();
+    for &c in &counts {
+        let (part, tail) = rest.split_at_mut(c as usize);
+        parts.push(part);
+        rest = tail;
+    }
+    map.par_chunks_mut(PIECE)
         .zip(link.par_chunks_mut(PIECE))
         .zip(positions.par_chunks(PIECE))
-        .zip(&offsets)
-        .map(|(((ids, links), points), &offset)| {
-            let mut welded = Vec::new();
+        .zip(parts.into_par_iter().zip(&offsets))
+        .for_each(|(((ids, links), points), (out, &offset))| {
+            let mut k = 0;
             for ((id, l), p) in ids.iter_mut().zip(links).zip(points) {
                 *id = *l;
                 if *l == FIRST {
-                    *l = offset + welded.len() as u32;
+                    *l = offset + k as u32;
                     *id = *l;
-                    welded.push(normalised(p));
+                    out[k] = normalised(p);
+                    k += 1;
                 } else if *l != INVALID {
                     // Linked: resolved below, once every first has its id.
                     *id = FIRST;
                 }
             }
-            welded
-        })
-        .collect();
+        });
     let link = &*link;
     map.par_chunks_mut(PIECE)
         .zip(link.par_chunks(PIECE))
@@ -265,7 +272,7 @@ fn number_parallel(link: &mut [u32], positions: &[[f64; 3]]) -> (Vec<u32>, Vec<[
                 }
             }
         });
-    (map, welded.concat())
+    (map, welded)
 }
 
 /// Sorts the weld's keys by their top 32 bits (the hash; the index below it rises within equal
