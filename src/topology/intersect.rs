@@ -257,6 +257,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let mut finder = Finder {
         shared: &shared,
         tally: Tally::default(),
+        row: None,
     };
     tree.walk(&mut finder);
 
@@ -327,6 +328,8 @@ impl Tally {
 struct Finder<'a> {
     shared: &'a Shared<'a>,
     tally: Tally,
+    /// The face of the current row of pairs and its plane.
+    row: Option<(u32, meet::Plane)>,
 }
 
 impl Visit for Finder<'_> {
@@ -334,6 +337,7 @@ impl Visit for Finder<'_> {
         Finder {
             shared: self.shared,
             tally: Tally::default(),
+            row: None,
         }
     }
 
@@ -358,7 +362,14 @@ impl Visit for Finder<'_> {
                 s.points[c as usize],
             ]
         };
-        if !meet::faces_meet(fa.vertices, corners(fa), fb.vertices, corners(fb)) {
+        // Pairs come in rows of one face `a` (a leaf's face against its neighbours): its plane is
+        // computed once per row.
+        if self.row.as_ref().is_none_or(|(r, _)| *r != a) {
+            let [p, q, r] = corners(fa);
+            self.row = Some((a, meet::Plane::of(p, q, r)));
+        }
+        let plane = &self.row.as_ref().expect("set above").1;
+        if !meet::plane_meets(fa.vertices, plane, fb.vertices, corners(fb)) {
             return;
         }
         let t = &mut self.tally;

@@ -27,7 +27,14 @@ use robust::{orient2d, orient3d, Coord, Coord3D};
 pub(super) type Point = [f64; 3];
 
 /// Whether faces `f` and `g` (welded vertex ids and their positions) meet.
+#[cfg(test)]
 pub(super) fn faces_meet(f_ids: [u32; 3], f: [Point; 3], g_ids: [u32; 3], g: [Point; 3]) -> bool {
+    faces_meet_with::<true>(f_ids, &Plane::of(f[0], f[1], f[2]), g_ids, g)
+}
+
+/// [`faces_meet`] with f given by its plane ([`Plane::of`] its corners in order), which a caller
+/// testing one face against many computes once.
+pub(super) fn plane_meets(f_ids: [u32; 3], f: &Plane, g_ids: [u32; 3], g: [Point; 3]) -> bool {
     faces_meet_with::<true>(f_ids, f, g_ids, g)
 }
 
@@ -36,10 +43,11 @@ pub(super) fn faces_meet(f_ids: [u32; 3], f: [Point; 3], g_ids: [u32; 3], g: [Po
 /// shortcuts to).
 fn faces_meet_with<const SHORTCUTS: bool>(
     f_ids: [u32; 3],
-    f: [Point; 3],
+    plane: &Plane,
     g_ids: [u32; 3],
     g: [Point; 3],
 ) -> bool {
+    let f = [plane.p, plane.q, plane.r];
     // Bit `3 i + j`: f's vertex i is g's vertex j.
     let mut shared = 0u32;
     for (i, &v) in f_ids.iter().enumerate() {
@@ -48,11 +56,11 @@ fn faces_meet_with<const SHORTCUTS: bool>(
         }
     }
     match shared.count_ones() {
-        0 => disjoint_meet::<SHORTCUTS>(f, g),
+        0 => disjoint_meet::<SHORTCUTS>(plane, g),
         1 => {
             let bit = shared.trailing_zeros() as usize;
             let (i, j) = (bit / 3, bit % 3);
-            vertex_meet::<SHORTCUTS>(f[i], f[NEXT[i]], f[PREV[i]], g[NEXT[j]], g[PREV[j]])
+            vertex_meet::<SHORTCUTS>(plane, f[i], f[NEXT[i]], f[PREV[i]], g[NEXT[j]], g[PREV[j]])
         }
         2 => {
             // The row of f and the column of g without a shared vertex.
@@ -114,8 +122,17 @@ const FOLD_ERROR: f64 = 1e-14;
 /// Where floating point cannot tell a side (faces of one flat fan, common in CAD meshes), the
 /// exact predicate is slow; the faces' projections along f's normal often show first, exactly,
 /// that they share only `v` ([`cones_apart`]).
-fn vertex_meet<const SHORTCUTS: bool>(v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
-    let f = Plane::of(v, a, b);
+///
+/// `f` is the plane of `v a b` from any of its corners ([`Plane::of`] `v a b`, `a b v` or `b v a`:
+/// the same signs).
+fn vertex_meet<const SHORTCUTS: bool>(
+    f: &Plane,
+    v: Point,
+    a: Point,
+    b: Point,
+    c: Point,
+    d: Point,
+) -> bool {
     let (qc, qd) = (f.quick_side(c), f.quick_side(d));
     match (qc, qd) {
         (Some(sc), Some(sd)) if strictly_same_side(sc, sd) => return false,
@@ -180,8 +197,8 @@ fn cones_apart(axes: Axes, v: Point, a: Point, b: Point, c: Point, d: Point) -> 
 ///
 /// As in [`vertex_meet`], where floating point cannot tell a side, disjoint projections along f's
 /// normal settle it first (two triangles whose shadows are apart are apart).
-fn disjoint_meet<const SHORTCUTS: bool>(f: [Point; 3], g: [Point; 3]) -> bool {
-    let plane = Plane::of(f[0], f[1], f[2]);
+fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
+    let f = [plane.p, plane.q, plane.r];
     let quick = g.map(|x| plane.quick_side(x));
     if let [Some(x), Some(y), Some(z)] = quick {
         if one_strict_side([x, y, z]) {
@@ -259,7 +276,7 @@ fn touching(t: [Point; 3], s: [f64; 3], other: [Point; 3]) -> Option<bool> {
 /// The plane of triangle `p q r`, kept in the form its side tests filter best: `n = (q - p) x
 /// (r - p)` and, per axis, the sum of the magnitudes of the two products that make `n`'s
 /// component.
-struct Plane {
+pub(super) struct Plane {
     p: Point,
     q: Point,
     r: Point,
@@ -274,7 +291,7 @@ struct Plane {
 const SIDE_ERROR: f64 = 7.8e-16;
 
 impl Plane {
-    fn of(p: Point, q: Point, r: Point) -> Plane {
+    pub(super) fn of(p: Point, q: Point, r: Point) -> Plane {
         let (u, w) = (sub(q, p), sub(r, p));
         Plane {
             p,
@@ -562,10 +579,11 @@ mod tests {
             if !distinct(f_ids) || !distinct(g_ids) || !welded {
                 continue;
             }
-            let quick = faces_meet_with::<true>(f_ids, f, g_ids, g);
+            let plane = Plane::of(f[0], f[1], f[2]);
+            let quick = faces_meet_with::<true>(f_ids, &plane, g_ids, g);
             assert_eq!(
                 quick,
-                faces_meet_with::<false>(f_ids, f, g_ids, g),
+                faces_meet_with::<false>(f_ids, &plane, g_ids, g),
                 "{f:?} {g:?}"
             );
             if quick {
