@@ -14,6 +14,8 @@
 //! [`Visit`] and the tasks' findings are merged, so the answer does not depend on the thread count.
 
 use glam::{BVec4A, Vec4};
+
+use crate::geometry::morton;
 use rayon::prelude::*;
 
 /// Faces per leaf.
@@ -81,71 +83,8 @@ fn join(a: &Box3, b: &Box3) -> Box3 {
 
 /// The order of `boxes` along a Morton curve through their centres (ties keep their order).
 pub(super) fn morton_order(boxes: &[Box3]) -> Vec<u32> {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    let centre = |b: &Box3, k: usize| 0.5 * b[k] + 0.5 * b[k + 3];
-    for b in boxes {
-        for k in 0..3 {
-            lo[k] = lo[k].min(centre(b, k));
-            hi[k] = hi[k].max(centre(b, k));
-        }
-    }
-    let scale: [f32; 3] = std::array::from_fn(|k| {
-        let extent = hi[k] - lo[k];
-        if extent > 0.0 && extent.is_finite() {
-            1023.0 / extent
-        } else {
-            0.0
-        }
-    });
-    let mut keys: Vec<u64> = boxes
-        .par_iter()
-        .with_min_len(1 << 14)
-        .enumerate()
-        .map(|(i, b)| {
-            let cell = |k: usize| {
-                let x = (centre(b, k) - lo[k]) * scale[k];
-                // NaN (an infinite box) and out-of-range values clamp into the grid.
-                (x.clamp(0.0, 1023.0) as u32).min(1023)
-            };
-            let code = spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2;
-            u64::from(code) << 32 | i as u64
-        })
-        .collect();
-    radix_sort_high(&mut keys);
-    keys.iter().map(|&k| k as u32).collect()
-}
-
-/// The 10 low bits of `x`, two zero bits after each.
-fn spread(x: u32) -> u32 {
-    let mut x = x & 0x3ff;
-    x = (x | x << 16) & 0x030000ff;
-    x = (x | x << 8) & 0x0300f00f;
-    x = (x | x << 4) & 0x030c30c3;
-    x = (x | x << 2) & 0x09249249;
-    x
-}
-
-/// Stable sort of `keys` by their bits 32..62 (three passes of ten bits).
-fn radix_sort_high(keys: &mut Vec<u64>) {
-    let mut other = vec![0u64; keys.len()];
-    for pass in 0..3 {
-        let shift = 32 + 10 * pass;
-        let digit = |k: u64| ((k >> shift) & 0x3ff) as usize;
-        let mut start = [0usize; 1025];
-        for &k in keys.iter() {
-            start[digit(k) + 1] += 1;
-        }
-        for i in 0..1024 {
-            start[i + 1] += start[i];
-        }
-        for &k in keys.iter() {
-            let slot = &mut start[digit(k)];
-            other[*slot] = k;
-            *slot += 1;
-        }
-        std::mem::swap(keys, &mut other);
-    }
+    let centre = |b: &Box3| std::array::from_fn(|k| 0.5 * b[k] + 0.5 * b[k + 3]);
+    morton::order(boxes.len(), |i| centre(&boxes[i]))
 }
 
 /// What the walk calls for each pair of faces (positions in the sorted order) with overlapping
