@@ -296,9 +296,8 @@ fn walk_patches(table: &CornerTable, runs: usize) -> Patches {
         }
     }
 
-    // One number per joined patch, in order of its first run patch; the parity of each run patch
-    // against that patch's root.
-    let mut number = vec![UNSET; total as usize];
+    // One number per joined patch, in order of its root (its lowest run patch, so met first);
+    // the parity of each run patch against that root.
     let mut id_of = vec![UNSET; total as usize];
     let mut to_root = vec![false; total as usize];
     let mut orientable = Vec::new();
@@ -308,14 +307,16 @@ fn walk_patches(table: &CornerTable, runs: usize) -> Patches {
         .flat_map(|w| w.orientable.iter().zip(&w.counts));
     for (x, (&ok, n)) in run_patches.enumerate() {
         let (root, p) = find_with_parity(&mut parent, &mut parity, x as u32);
+        debug_assert!(root as usize <= x, "a root is its set's lowest run patch");
         to_root[x] = p;
-        if number[root as usize] == UNSET {
-            number[root as usize] = orientable.len() as u32;
+        if root as usize == x {
             orientable.push(true);
             counts.push(PatchCounts::default());
+            id_of[x] = orientable.len() as u32 - 1;
+        } else {
+            id_of[x] = id_of[root as usize];
         }
-        let id = number[root as usize] as usize;
-        id_of[x] = id as u32;
+        let id = id_of[x] as usize;
         orientable[id] &= ok;
         counts[id].add(n);
     }

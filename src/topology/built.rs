@@ -225,7 +225,7 @@ fn group(
     let sort_run = |run_faces: &[[u32; 3]]| {
         let mut left = LeftOut::default();
         let mut lowest = Bounds::new(n);
-        let mut kept = Vec::with_capacity(run_faces.len());
+        let mut welded_run = Vec::with_capacity(run_faces.len());
         for t in run_faces {
             let w = welded(t);
             // A kept face's vertices are marked after pass 2, in table order (close in memory).
@@ -250,11 +250,11 @@ fn group(
                     low
                 }
             };
-            kept.push(if low == NOT_KEPT { [NOT_KEPT; 3] } else { w });
+            welded_run.push(if low == NOT_KEPT { [NOT_KEPT; 3] } else { w });
         }
         lowest.open();
         let mut order = vec![0u32; lowest.total()];
-        for (i, w) in kept.iter().enumerate() {
+        for (i, w) in welded_run.iter().enumerate() {
             if w[0] != NOT_KEPT {
                 let low = w[0].min(w[1]).min(w[2]);
                 order[lowest.slot(low as usize)] = i as u32;
@@ -264,7 +264,7 @@ fn group(
             left,
             order,
             bounds: lowest.into_bounds(),
-            welded: kept,
+            welded: welded_run,
         }
     };
     let mut runs: Vec<Sorted> = if parallel {
@@ -284,12 +284,12 @@ fn group(
         let Sorted {
             order: mut names,
             bounds,
-            welded: kept,
+            welded: welded_run,
             ..
         } = runs.pop().expect("one run");
         let mut table_faces = Vec::with_capacity(names.len());
         for i in &mut names {
-            table_faces.push(kept[*i as usize]);
+            table_faces.push(welded_run[*i as usize]);
             *i = name(*i as usize);
         }
         (table_faces, names, bounds)
@@ -363,8 +363,8 @@ const NOT_KEPT: u32 = u32::MAX;
 /// How many faces a piece of the parallel gather covers, at least.
 const PIECE: usize = 1 << 16;
 
-/// A run of input faces after pass 1: the kept faces' indices in the run by lowest vertex, vertex `x`'s
-/// at `order[bounds[x]..bounds[x + 1]]`.
+/// A run of input faces after pass 1: the kept faces' indices in the run by lowest vertex, vertex
+/// `x`'s at `order[bounds[x]..bounds[x + 1]]`.
 struct Sorted {
     left: LeftOut,
     /// Indices into the run, by lowest vertex.

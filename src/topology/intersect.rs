@@ -364,11 +364,13 @@ impl Visit for Finder<'_> {
         };
         // Pairs come in rows of one face `a` (a leaf's face against its neighbours): its plane is
         // computed once per row.
-        if self.row.as_ref().is_none_or(|(r, _)| *r != a) {
-            let [p, q, r] = corners(fa);
-            self.row = Some((a, meet::Plane::of(p, q, r)));
+        if self.row.as_ref().is_some_and(|(r, _)| *r != a) {
+            self.row = None;
         }
-        let plane = &self.row.as_ref().expect("set above").1;
+        let (_, plane) = self.row.get_or_insert_with(|| {
+            let [p, q, r] = corners(fa);
+            (a, meet::Plane::of(p, q, r))
+        });
         if !meet::plane_meets(fa.vertices, plane, fb.vertices, corners(fb)) {
             return;
         }
