@@ -10,7 +10,10 @@
 //!
 //! - broad (`tree`): a bounding-volume hierarchy of outward-rounded face boxes, walked against
 //!   itself, gives every pair of faces whose boxes overlap, in parallel tasks on the current rayon
-//!   pool for big meshes;
+//!   pool for big meshes, except the pairs that share a vertex whose star is flat (`stars`: the
+//!   faces around it project one to one onto a coordinate plane, so they meet only where they
+//!   share that vertex or an edge; decided exactly, and true of nearly every vertex of a smooth
+//!   surface, it leaves out most of the pairs neighbouring faces make);
 //! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
 //!   come from the Corner Table's welded vertex ids.
 //!
@@ -18,6 +21,7 @@
 //! coordinate is beyond 2^±100 is first scaled by a power of two, which changes no sign.
 
 mod meet;
+mod stars;
 mod tree;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
@@ -157,6 +161,9 @@ pub(crate) fn intersect_table(
 #[derive(Debug, Clone, Copy)]
 struct Face {
     vertices: [u32; 3],
+    /// Bit `i`: vertex `i`'s star is flat ([`stars`]): this face and another on that vertex meet
+    /// nowhere but there or on an edge they share, and the walk skips their pair.
+    flat: u8,
     /// The face's number in the findings.
     face: u32,
     component: u32,
@@ -169,6 +176,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let scaled = scaled_points(surface.points);
     let points: &[[f64; 3]] = scaled.as_deref().unwrap_or(surface.points);
     let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
+    let stars = stars::flat_stars(points, surface.table);
 
     // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
     // the faces kept, each with its box and what the walk needs of it. One thread gathers them in
@@ -186,13 +194,17 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
                 }
                 None => cross2(a, b, c),
             };
-            if area <= surface.zero_bound || meet::collinear(a, b, c) {
+            if area <= surface.zero_bound || stars::is_set(&stars.collinear, t as u32) {
                 continue;
             }
             let t = t as u32;
             boxes.push(tree::box_of(&[a, b, c]));
+            let vertices = triangles[t as usize];
             kept.push(Face {
-                vertices: triangles[t as usize],
+                vertices,
+                flat: (0..3).fold(0, |m, i| {
+                    m | u8::from(stars::is_set(&stars.flat, vertices[i])) << i
+                }),
                 face: surface.number.map_or(t, |n| n[t as usize]),
                 component: (surface.component)(t),
             });
@@ -216,7 +228,9 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         (boxes, kept)
     };
     let order = tree::morton_order(&boxes);
-    let tree = Tree::build(&boxes, &order);
+    // Faces that share a vertex with a flat star meet only there or along an edge they share: the
+    // walk skips those pairs.
+    let tree = Tree::build(&boxes, &order, &|i| (kept[i].vertices, kept[i].flat));
     drop(boxes);
     // The faces in that order, their vertices renumbered in order of first use and their points
     // copied in that order, so that faces close in the walk find their points close in memory.
@@ -353,6 +367,7 @@ impl Visit for Finder<'_> {
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
         let (fa, fb) = (&s.faces[a as usize], &s.faces[b as usize]);
+        let shared = meet::shared(fa.vertices, fb.vertices);
         // Written out: `array::map` here costs as much as the loads.
         let corners = |f: &Face| {
             let [a, b, c] = f.vertices;
@@ -371,7 +386,7 @@ impl Visit for Finder<'_> {
             let [p, q, r] = corners(fa);
             (a, meet::Plane::of(p, q, r))
         });
-        if !meet::plane_meets(fa.vertices, plane, fb.vertices, corners(fb)) {
+        if !meet::plane_meets(shared, plane, corners(fb)) {
             return;
         }
         let t = &mut self.tally;

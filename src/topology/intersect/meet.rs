@@ -29,32 +29,32 @@ pub(super) type Point = [f64; 3];
 /// Whether faces `f` and `g` (welded vertex ids and their positions) meet.
 #[cfg(test)]
 pub(super) fn faces_meet(f_ids: [u32; 3], f: [Point; 3], g_ids: [u32; 3], g: [Point; 3]) -> bool {
-    faces_meet_with::<true>(f_ids, &Plane::of(f[0], f[1], f[2]), g_ids, g)
+    faces_meet_with::<true>(shared(f_ids, g_ids), &Plane::of(f[0], f[1], f[2]), g)
 }
 
 /// [`faces_meet`] with f given by its plane ([`Plane::of`] its corners in order), which a caller
-/// testing one face against many computes once.
-pub(super) fn plane_meets(f_ids: [u32; 3], f: &Plane, g_ids: [u32; 3], g: [Point; 3]) -> bool {
-    faces_meet_with::<true>(f_ids, f, g_ids, g)
+/// testing one face against many computes once, and the vertices the faces share ([`shared`]).
+pub(super) fn plane_meets(shared: u32, f: &Plane, g: [Point; 3]) -> bool {
+    faces_meet_with::<true>(shared, f, g)
 }
 
-/// [`faces_meet`], with or without the shortcuts (the normals' dot product for faces on one edge,
-/// the projections for the others; `false`: only the side tests, which the tests hold the
-/// shortcuts to).
-fn faces_meet_with<const SHORTCUTS: bool>(
-    f_ids: [u32; 3],
-    plane: &Plane,
-    g_ids: [u32; 3],
-    g: [Point; 3],
-) -> bool {
-    let f = [plane.p, plane.q, plane.r];
-    // Bit `3 i + j`: f's vertex i is g's vertex j.
+/// Which vertices faces `f` and `g` share: bit `3 i + j` set when f's vertex `i` is g's vertex `j`.
+#[inline]
+pub(super) fn shared(f_ids: [u32; 3], g_ids: [u32; 3]) -> u32 {
     let mut shared = 0u32;
     for (i, &v) in f_ids.iter().enumerate() {
         for (j, &w) in g_ids.iter().enumerate() {
             shared |= u32::from(v == w) << (3 * i + j);
         }
     }
+    shared
+}
+
+/// [`faces_meet`], with or without the shortcuts (the normals' dot product for faces on one edge,
+/// the projections for the others; `false`: only the side tests, which the tests hold the
+/// shortcuts to).
+fn faces_meet_with<const SHORTCUTS: bool>(shared: u32, plane: &Plane, g: [Point; 3]) -> bool {
+    let f = [plane.p, plane.q, plane.r];
     match shared.count_ones() {
         0 => disjoint_meet::<SHORTCUTS>(plane, g),
         1 => {
@@ -402,32 +402,27 @@ fn point_in_triangle_2d(p: [f64; 2], t: [[f64; 2]; 3]) -> bool {
     !mixed([o2(t[0], t[1], p), o2(t[1], t[2], p), o2(t[2], t[0], p)])
 }
 
-/// Whether the exact triangle `a b c` is collinear (zero area; three distinct points on a line).
-/// Each component of `(b - a) x (c - a)` is a 2D orientation of one projection; one beyond its
-/// rounding error (Shewchuk's first `orient2d` bound, rounded up) settles it, else the exact
-/// predicate decides.
+/// The signs of triangle `a b c`'s area in the three projections along the axes (exact
+/// `orient2d`, [`AXES`] order): the components of its normal `(b - a) x (c - a)` in sign.
+pub(super) fn turns(a: Point, b: Point, c: Point) -> [f64; 3] {
+    AXES.map(|axes| o2(axes.of(a), axes.of(b), axes.of(c)))
+}
+
+/// Whether the exact triangle `a b c` is collinear (zero area; three distinct points on a line):
+/// every projection of it has zero area.
+#[cfg(test)]
 pub(super) fn collinear(a: Point, b: Point, c: Point) -> bool {
-    const ERROR: f64 = 3.4e-16;
-    let (u, w) = (sub(b, a), sub(c, a));
-    let clearly_not = (0..3).any(|k| {
-        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-        let (l, r) = (u[i] * w[j], u[j] * w[i]);
-        (l - r).abs() > ERROR * (l.abs() + r.abs())
-    });
-    !clearly_not
-        && AXES
-            .iter()
-            .all(|axes| o2(axes.of(a), axes.of(b), axes.of(c)) == 0.0)
+    turns(a, b, c) == [0.0; 3]
 }
 
 /// The two coordinates kept when a plane is projected along the third.
 #[derive(Debug, Clone, Copy)]
-struct Axes(usize, usize);
+pub(super) struct Axes(pub(super) usize, pub(super) usize);
 
-const AXES: [Axes; 3] = [Axes(1, 2), Axes(2, 0), Axes(0, 1)];
+pub(super) const AXES: [Axes; 3] = [Axes(1, 2), Axes(2, 0), Axes(0, 1)];
 
 impl Axes {
-    fn of(self, p: Point) -> [f64; 2] {
+    pub(super) fn of(self, p: Point) -> [f64; 2] {
         [p[self.0], p[self.1]]
     }
 }
@@ -509,7 +504,7 @@ fn o3(a: Point, b: Point, c: Point, d: Point) -> f64 {
 /// `orient2d(a, b, c)`: its floating-point value when beyond Shewchuk's first error bound, zero
 /// when that is exact (see [`has_tiny`]), else `robust`'s exact answer.
 #[inline]
-fn o2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+pub(super) fn o2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     let (ac, bc) = ([a[0] - c[0], a[1] - c[1]], [b[0] - c[0], b[1] - c[1]]);
     let (left, right) = (ac[0] * bc[1], ac[1] * bc[0]);
     let det = left - right;
@@ -580,10 +575,11 @@ mod tests {
                 continue;
             }
             let plane = Plane::of(f[0], f[1], f[2]);
-            let quick = faces_meet_with::<true>(f_ids, &plane, g_ids, g);
+            let ids = super::shared(f_ids, g_ids);
+            let quick = faces_meet_with::<true>(ids, &plane, g);
             assert_eq!(
                 quick,
-                faces_meet_with::<false>(f_ids, &plane, g_ids, g),
+                faces_meet_with::<false>(ids, &plane, g),
                 "{f:?} {g:?}"
             );
             if quick {
