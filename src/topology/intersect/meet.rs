@@ -405,7 +405,13 @@ fn point_in_triangle_2d(p: [f64; 2], t: [[f64; 2]; 3]) -> bool {
 /// The signs of triangle `a b c`'s area in the three projections along the axes (exact
 /// `orient2d`, [`AXES`] order): the components of its normal `(b - a) x (c - a)` in sign.
 pub(super) fn turns(a: Point, b: Point, c: Point) -> [f64; 3] {
-    AXES.map(|axes| o2(axes.of(a), axes.of(b), axes.of(c)))
+    // Written out: `array::map` here costs more than the three filters.
+    let [x, y, z] = AXES;
+    [
+        o2(x.of(a), x.of(b), x.of(c)),
+        o2(y.of(a), y.of(b), y.of(c)),
+        o2(z.of(a), z.of(b), z.of(c)),
+    ]
 }
 
 /// Whether the exact triangle `a b c` is collinear (zero area; three distinct points on a line):
