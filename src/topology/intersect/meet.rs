@@ -217,10 +217,10 @@ fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
     }
     if sg == [0.0; 3] {
         // One plane (then f's vertices are on g's plane too: no need to ask).
-        let axes = plane_axes(f[0], f[1], f[2]);
+        let axes = plane.axes();
         return coplanar_triangles_meet(f.map(|x| axes.of(x)), g.map(|x| axes.of(x)));
     }
-    if let Some(touch) = touching(g, sg, f) {
+    if let Some(touch) = touching(g, sg, plane) {
         return touch;
     }
     let plane = Plane::of(g[0], g[1], g[2]);
@@ -228,7 +228,7 @@ fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
     if one_strict_side(sf) {
         return false;
     }
-    if let Some(touch) = touching(f, sf, g) {
+    if let Some(touch) = touching(f, sf, &plane) {
         return touch;
     }
     (0..3).any(|k| {
@@ -238,15 +238,16 @@ fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
     })
 }
 
-/// When triangle `t` only touches the plane of `other` (given the sides `s` of its vertices, not
-/// all zero, not all strictly on one side), whether they meet: with one vertex on the plane and
-/// the other two strictly on one side, `t` meets the plane only at that vertex; with two on it,
-/// only along that edge. `None` when `t` crosses the plane.
-fn touching(t: [Point; 3], s: [f64; 3], other: [Point; 3]) -> Option<bool> {
+/// When triangle `t` only touches `plane`, another triangle's (given the sides `s` of `t`'s
+/// vertices, not all zero, not all strictly on one side), whether the two meet: with one vertex on
+/// the plane and the other two strictly on one side, `t` meets the plane only at that vertex; with
+/// two on it, only along that edge. `None` when `t` crosses the plane.
+fn touching(t: [Point; 3], s: [f64; 3], plane: &Plane) -> Option<bool> {
     let zeros = s.iter().filter(|&&x| x == 0.0).count();
     let k = s.iter().position(|&x| x == 0.0)?;
     let (l, m) = ((k + 1) % 3, (k + 2) % 3);
-    let axes = || plane_axes(other[0], other[1], other[2]);
+    let other = [plane.p, plane.q, plane.r];
+    let axes = || plane.axes();
     match zeros {
         1 if strictly_same_side(s[l], s[m]) => {
             let axes = axes();
@@ -282,6 +283,10 @@ pub(super) struct Plane {
     r: Point,
     n: [f64; 3],
     magnitude: [f64; 3],
+    /// `q - p` or `r - p` has a tiny component ([`has_tiny`]).
+    tiny: bool,
+    /// [`plane_axes`] of the triangle, found when first asked.
+    axes: std::cell::OnceCell<Axes>,
 }
 
 /// Bounds the rounding error of `(s - p) . n` relative to its permanent: Shewchuk's first
@@ -303,7 +308,14 @@ impl Plane {
                 (u[2] * w[0]).abs() + (u[0] * w[2]).abs(),
                 (u[0] * w[1]).abs() + (u[1] * w[0]).abs(),
             ],
+            tiny: has_tiny(&[u, w]),
+            axes: std::cell::OnceCell::new(),
         }
+    }
+
+    /// A projection that keeps this triangle a triangle ([`plane_axes`]), computed once.
+    fn axes(&self) -> Axes {
+        *self.axes.get_or_init(|| plane_axes(self.p, self.q, self.r))
     }
 
     /// `orient3d(p, q, r, s)` in sign (the same sign as `-(s - p) . n`): decided in floating point
@@ -325,7 +337,7 @@ impl Plane {
         if det.abs() > SIDE_ERROR * permanent {
             return Some(-det);
         }
-        if permanent == 0.0 && !has_tiny(&[d, sub(self.q, self.p), sub(self.r, self.p)]) {
+        if permanent == 0.0 && !self.tiny && !has_tiny(&[d]) {
             return Some(0.0);
         }
         None
@@ -378,9 +390,10 @@ fn coplanar_triangles_meet(f: [[f64; 2]; 3], g: [[f64; 2]; 3]) -> bool {
 
 /// Whether an edge of triangle `t` has every point of `others` strictly outside it.
 fn separates(t: [[f64; 2]; 3], others: &[[f64; 2]]) -> bool {
+    // The inner side of every edge: the triangle's turn, the same exact sign from each corner.
+    let inside = o2(t[0], t[1], t[2]);
     (0..3).any(|k| {
-        let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-        let inside = o2(a, b, c);
+        let (a, b) = (t[k], t[(k + 1) % 3]);
         others
             .iter()
             .all(|&x| strictly_opposite(o2(a, b, x), inside))
