@@ -161,9 +161,6 @@ pub(crate) fn intersect_table(
 #[derive(Debug, Clone, Copy)]
 struct Face {
     vertices: [u32; 3],
-    /// Bit `i`: vertex `i`'s star is flat ([`stars`]): this face and another on that vertex meet
-    /// nowhere but there or on an edge they share, and the walk skips their pair.
-    flat: u8,
     /// The face's number in the findings.
     face: u32,
     component: u32,
@@ -199,12 +196,8 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
             }
             let t = t as u32;
             boxes.push(tree::box_of(&[a, b, c]));
-            let vertices = triangles[t as usize];
             kept.push(Face {
-                vertices,
-                flat: (0..3).fold(0, |m, i| {
-                    m | u8::from(stars::is_set(&stars.flat, vertices[i])) << i
-                }),
+                vertices: triangles[t as usize],
                 face: surface.number.map_or(t, |n| n[t as usize]),
                 component: (surface.component)(t),
             });
@@ -230,7 +223,13 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let order = tree::morton_order(&boxes);
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
     // walk skips those pairs.
-    let tree = Tree::build(&boxes, &order, &|i| (kept[i].vertices, kept[i].flat));
+    let tree = Tree::build(&boxes, &order, &|i| {
+        let vertices = kept[i].vertices;
+        let flat = (0..3).fold(0, |m, k| {
+            m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
+        });
+        (vertices, flat)
+    });
     drop(boxes);
     // The faces in that order, their vertices renumbered in order of first use and their points
     // copied in that order, so that faces close in the walk find their points close in memory.

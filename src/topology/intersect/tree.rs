@@ -109,13 +109,13 @@ struct Leaf {
     boxes: [[f32; LEAF]; 6],
     /// `[i][j]`: vertex `i` of face `j` ([`FREE`] in free places).
     vertices: [[u32; LEAF]; 3],
-    /// Face `j`'s vertices whose pairs are skipped, [`NONE`] for the others.
-    skipped: [[u32; 3]; LEAF],
+    /// Bit `k` of `skipped[j]`: pairs of face `j` with faces on its vertex `k` are skipped.
+    skipped: [u8; LEAF],
 }
 
 /// The vertex id of a free place in a leaf.
 const FREE: u32 = u32::MAX - 1;
-/// The id in [`Leaf::skipped`] of a vertex whose pairs are not skipped (matches no vertex).
+/// The id standing in for a vertex whose pairs are not skipped (matches no vertex).
 const NONE: u32 = u32::MAX;
 
 /// The tree over sorted face boxes.
@@ -141,19 +141,17 @@ impl Tree {
                 let mut leaf = Leaf {
                     boxes: [[f32::NAN; LEAF]; 6],
                     vertices: [[FREE; LEAF]; 3],
-                    skipped: [[NONE; 3]; LEAF],
+                    skipped: [0; LEAF],
                 };
                 for (j, &i) in chunk.iter().enumerate() {
                     for (row, &x) in leaf.boxes.iter_mut().zip(&boxes[i as usize]) {
                         row[j] = x;
                     }
                     let (vertices, skipped) = faces(i as usize);
-                    for (k, &v) in vertices.iter().enumerate() {
-                        leaf.vertices[k][j] = v;
-                        if skipped & (1 << k) != 0 {
-                            leaf.skipped[j][k] = v;
-                        }
+                    for (row, v) in leaf.vertices.iter_mut().zip(vertices) {
+                        row[j] = v;
                     }
+                    leaf.skipped[j] = skipped;
                 }
                 leaf
             })
@@ -201,10 +199,17 @@ impl Tree {
     #[inline]
     fn pairing(leaf: &Leaf, other: &Leaf, f: usize) -> u32 {
         let mut hits = Self::overlapping(leaf, &Self::face_box(other, f));
-        let skipped = other.skipped[f];
-        if skipped[0] & skipped[1] & skipped[2] == NONE {
+        let bits = other.skipped[f];
+        if bits == 0 {
             return hits;
         }
+        let skipped: [u32; 3] = std::array::from_fn(|k| {
+            if bits & (1 << k) != 0 {
+                other.vertices[k][f]
+            } else {
+                NONE
+            }
+        });
         // Few boxes overlap: test their faces one by one.
         let mut pairs = hits;
         while hits != 0 {
