@@ -221,37 +221,23 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         (boxes, kept)
     };
     let order = tree::morton_order(&boxes);
+    // The faces in that order, so that faces close in the walk are close in memory.
+    let faces: Vec<Face> = order
+        .par_iter()
+        .with_min_len(1 << 14)
+        .map(|&i| kept[i as usize])
+        .collect();
+    drop(kept);
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
     // walk skips those pairs.
-    let tree = Tree::build(&boxes, &order, &|i| {
-        let vertices = kept[i].vertices;
+    let tree = Tree::build(&boxes, &order, &|p| {
+        let vertices = faces[p].vertices;
         let flat = (0..3).fold(0, |m, k| {
             m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
         });
         (vertices, flat)
     });
-    drop(boxes);
-    // The faces in that order, their vertices renumbered in order of first use and their points
-    // copied in that order, so that faces close in the walk find their points close in memory.
-    let mut local = vec![u32::MAX; points.len()];
-    let mut near: Vec<[f64; 3]> = Vec::with_capacity(kept.len() / 2 + 3);
-    let faces: Vec<Face> = order
-        .iter()
-        .map(|&i| {
-            let mut face = kept[i as usize];
-            face.vertices = face.vertices.map(|v| {
-                let slot = &mut local[v as usize];
-                if *slot == u32::MAX {
-                    *slot = near.len() as u32;
-                    near.push(points[v as usize]);
-                }
-                *slot
-            });
-            face
-        })
-        .collect();
-    drop((kept, order, local, scaled));
-    let points = &near;
+    drop((boxes, order, stars));
 
     let numbers = surface
         .number

@@ -126,9 +126,10 @@ pub(super) struct Tree {
 }
 
 impl Tree {
-    /// The tree over `boxes` taken in `order`. `faces(i)` gives face `i`'s vertices (ids below
-    /// [`crate::corner_table::MAX_VERTICES`]) and, bit `k`, whether pairs of faces sharing its
-    /// vertex `k` are skipped: a property of the vertex, the same from every face that has it.
+    /// The tree over `boxes` taken in `order`. `faces(p)` gives the vertices of the face at place
+    /// `p` of the order (ids below [`crate::corner_table::MAX_VERTICES`]) and, bit `k`, whether
+    /// pairs of faces sharing its vertex `k` are skipped: a property of the vertex, the same from
+    /// every face that has it.
     pub(super) fn build(
         boxes: &[Box3],
         order: &[u32],
@@ -137,7 +138,8 @@ impl Tree {
         let leaves: Vec<Leaf> = order
             .par_chunks(LEAF)
             .with_min_len(1 << 12)
-            .map(|chunk| {
+            .enumerate()
+            .map(|(l, chunk)| {
                 let mut leaf = Leaf {
                     boxes: [[f32::NAN; LEAF]; 6],
                     vertices: [[FREE; LEAF]; 3],
@@ -147,7 +149,7 @@ impl Tree {
                     for (row, &x) in leaf.boxes.iter_mut().zip(&boxes[i as usize]) {
                         row[j] = x;
                     }
-                    let (vertices, skipped) = faces(i as usize);
+                    let (vertices, skipped) = faces(LEAF * l + j);
                     for (row, v) in leaf.vertices.iter_mut().zip(vertices) {
                         row[j] = v;
                     }
@@ -420,12 +422,12 @@ mod tests {
                 [a, b, b + 1 + (next() * 6.0) as u32]
             })
             .collect();
-        let faces = |i: usize| {
-            let v = vertices[i];
+        let order = morton_order(&boxes);
+        let faces = |p: usize| {
+            let v = vertices[order[p] as usize];
             let bits = (0..3).fold(0, |m, k| m | u8::from(skipped[v[k] as usize]) << k);
             (v, bits)
         };
-        let order = morton_order(&boxes);
         let mut found = Pairs(Vec::new());
         Tree::build(&boxes, &order, &faces).walk(&mut found);
         let mut found: Vec<(u32, u32)> = found
