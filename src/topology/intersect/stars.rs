@@ -1,6 +1,6 @@
 //! Vertices whose **star** (the faces around them) is flat enough to need no test: the faces of
-//! such a vertex meet one another only where they share that vertex or an edge, so the narrow phase
-//! can skip every pair of faces that shares one (on a smooth surface, almost all of its pairs).
+//! such a vertex meet one another only where they share that vertex or an edge, so the search
+//! leaves out every pair of faces that shares one (on a smooth surface, almost all of its pairs).
 //!
 //! A star is flat when it projects one to one onto a coordinate plane: dropping coordinate `k`
 //! (exact, no arithmetic), every face around `v` keeps its orientation sign and the faces go
@@ -34,7 +34,7 @@ use super::meet::{turns, Point, AXES};
 /// clockwise, not at all in that projection; one crossing seen; a second crossing seen.
 const COUNTER: u16 = 1;
 const CLOCKWISE: u16 = 2;
-const FLAT: u16 = 4;
+const ZERO: u16 = 4;
 const ONE: u16 = 8;
 const TWO: u16 = 16;
 /// An edge at the vertex that is a border, non-manifold, or whose faces disagree on its direction.
@@ -83,7 +83,7 @@ pub(super) fn flat_stars(points: &[Point], table: &CornerTable) -> Stars {
     for (v, &s) in state.iter().enumerate() {
         let one_way = (0..3).any(|k| {
             let s = s >> (5 * k);
-            let turns = s & (COUNTER | CLOCKWISE | FLAT);
+            let turns = s & (COUNTER | CLOCKWISE | ZERO);
             (turns == COUNTER || turns == CLOCKWISE) && s & (ONE | TWO) == ONE
         });
         if s & OPEN == 0 && one_way {
@@ -118,7 +118,7 @@ fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], b
             } else if turn[k] < 0.0 {
                 (CLOCKWISE, b[y] <= v[y] && v[y] < a[y])
             } else {
-                (FLAT, false)
+                (ZERO, false)
             };
             *part |= (bits | if crosses { ONE } else { 0 }) << (5 * k);
         }
