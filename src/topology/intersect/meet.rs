@@ -497,7 +497,7 @@ fn mixed(s: [f64; 3]) -> bool {
 /// `orient3d(a, b, c, d)`: its floating-point value when beyond Shewchuk's first error bound
 /// (the same test `robust` makes first, here inline), else `robust`'s exact answer.
 #[inline]
-fn o3(a: Point, b: Point, c: Point, d: Point) -> f64 {
+pub(super) fn o3(a: Point, b: Point, c: Point, d: Point) -> f64 {
     let (ad, bd, cd) = (sub(a, d), sub(b, d), sub(c, d));
     let (bc, cb) = (bd[0] * cd[1], cd[0] * bd[1]);
     let (ca, ac) = (cd[0] * ad[1], ad[0] * cd[1]);

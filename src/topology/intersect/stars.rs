@@ -2,9 +2,10 @@
 //! such a vertex meet one another only where they share that vertex or an edge, so the search
 //! leaves out every pair of faces that shares one (on a smooth surface, almost all of its pairs).
 //!
-//! A star is flat when it projects one to one onto a coordinate plane: dropping coordinate `k`
-//! (exact, no arithmetic), every face around `v` keeps its orientation sign and the faces go
-//! around `v` exactly once. Then the faces are the graph of a function over the plane around `v`,
+//! A star is flat when it projects one to one onto a plane: dropping coordinate `k` (exact, no
+//! arithmetic), or, for a closed star no axis flattens (a CAD corner or crease), along a direction
+//! of its own near its normal ([`along_own_axes`], with exact `orient3d`), every face around `v`
+//! keeps its orientation sign and the faces go around `v` exactly once. Then the faces are the graph of a function over the plane around `v`,
 //! their shadows are wedges that touch only along the spokes they share, and two faces have no
 //! common point but the shadows' common part lifted back: `v`, or their shared edge.
 //!
@@ -28,7 +29,7 @@ use rayon::prelude::*;
 
 use crate::corner_table::CornerTable;
 
-use super::meet::{turns, Point, AXES};
+use super::meet::{o3, turns, Point, AXES};
 
 /// Per axis `k`, five bits of a vertex's state: some face of its star turns counter-clockwise,
 /// clockwise, not at all in that projection; one crossing seen; a second crossing seen.
@@ -55,6 +56,11 @@ pub(super) struct Stars {
 /// on the current rayon pool, each corner's part of its vertex's state written apart; one pass in
 /// corner order then joins them.
 pub(super) fn flat_stars(points: &[Point], table: &CornerTable) -> Stars {
+    flat_stars_with(points, table, true)
+}
+
+/// [`flat_stars`]; without `own_axis`, only the coordinate axes are tried.
+fn flat_stars_with(points: &[Point], table: &CornerTable, own_axis: bool) -> Stars {
     const RUN: usize = 1 << 12;
     let triangles = table.triangles();
     let mut parts = vec![[0u16; 3]; triangles.len()];
@@ -80,17 +86,122 @@ pub(super) fn flat_stars(points: &[Point], table: &CornerTable) -> Stars {
         }
     }
     let mut flat = vec![0u64; state.len().div_ceil(64)];
+    let mut closed_not_flat = Vec::new();
     for (v, &s) in state.iter().enumerate() {
-        let one_way = (0..3).any(|k| {
-            let s = s >> (5 * k);
-            let turns = s & (COUNTER | CLOCKWISE | ZERO);
-            (turns == COUNTER || turns == CLOCKWISE) && s & (ONE | TWO) == ONE
-        });
-        if s & OPEN == 0 && one_way {
-            flat[v / 64] |= 1 << (v % 64);
+        if s & OPEN == 0 {
+            if (0..3).any(|k| once_around(s >> (5 * k))) {
+                flat[v / 64] |= 1 << (v % 64);
+            } else {
+                closed_not_flat.push(v as u32);
+            }
         }
     }
+    if own_axis && !closed_not_flat.is_empty() {
+        along_own_axes(points, table, &closed_not_flat, &mut flat);
+    }
     Stars { flat, collinear }
+}
+
+/// Whether one axis's five bits say its faces all turn one way and cross the ray once.
+fn once_around(s: u16) -> bool {
+    let turns = s & (COUNTER | CLOCKWISE | ZERO);
+    (turns == COUNTER || turns == CLOCKWISE) && s & (ONE | TWO) == ONE
+}
+
+/// The second chance of the closed stars that no coordinate axis flattens (the corners and creases
+/// of CAD models, whose faces lie in the axes' planes): each is looked at along a direction of its
+/// own, near its normal. The projection is along `e - v` for a point `e` taken near `v + normal`
+/// (any point off `v` will do: the direction is whatever `e - v` exactly is), so a face's turn is
+/// the exact `orient3d(v, a, b, e)`, and the ray is the side of the plane through `v`, `e` and a
+/// third point `h`: `orient3d(v, e, h, x)` is the side of the projected line that `x` falls on.
+/// The count of crossings is then the same as along an axis: with every outer edge passing `v` on
+/// one side, the edges crossing that line one way are the edges crossing one half of it.
+fn along_own_axes(points: &[Point], table: &CornerTable, candidates: &[u32], flat: &mut [u64]) {
+    let triangles = table.triangles();
+    let mut slot = vec![u32::MAX; table.vertex_count()];
+    for (i, &v) in candidates.iter().enumerate() {
+        slot[v as usize] = i as u32;
+    }
+    // The candidates' directions: the sums of their faces' normals, and the sums of their spokes'
+    // lengths (floating point; only which way they point matters, and not even that for
+    // exactness).
+    let mut normal = vec![([0.0f64; 3], 0.0f64); candidates.len()];
+    for tri in triangles {
+        let p = tri.map(|v| points[v as usize]);
+        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        for j in 0..3 {
+            let i = slot[tri[j] as usize];
+            if i != u32::MAX {
+                let (sum, length) = &mut normal[i as usize];
+                for k in 0..3 {
+                    sum[k] += n[k];
+                }
+                *length += norm(sub(p[(j + 1) % 3], p[j]));
+            }
+        }
+    }
+    // A frame that is not finite (a normal too small for its spokes) leaves its vertex as it is.
+    let frames: Vec<Option<(Point, Point)>> = candidates
+        .iter()
+        .zip(&normal)
+        .map(|(&v, &(n, length))| {
+            let v = points[v as usize];
+            let scale = length / norm(n).max(f64::MIN_POSITIVE);
+            let e: Point = std::array::from_fn(|k| v[k] + n[k] * scale);
+            // A direction across n: n times the axis n is least along.
+            let least = (0..3).fold(0, |m, k| if n[k].abs() < n[m].abs() { k } else { m });
+            let mut axis = [0.0; 3];
+            axis[least] = 1.0;
+            let u = cross(n, axis);
+            let scale = length / norm(u).max(f64::MIN_POSITIVE);
+            let h: Point = std::array::from_fn(|k| v[k] + u[k] * scale);
+            e.iter().chain(&h).all(|x| x.is_finite()).then_some((e, h))
+        })
+        .collect();
+    let mut state = vec![0u16; candidates.len()];
+    for tri in triangles {
+        let p = tri.map(|v| points[v as usize]);
+        for j in 0..3 {
+            let i = slot[tri[j] as usize];
+            let Some((e, h)) = frames.get(i as usize).copied().flatten() else {
+                continue;
+            };
+            let (v, a, b) = (p[j], p[(j + 1) % 3], p[(j + 2) % 3]);
+            let turn = o3(v, a, b, e);
+            let (sa, sb) = (o3(v, e, h, a), o3(v, e, h, b));
+            let (bits, crosses) = if turn > 0.0 {
+                (COUNTER, sa <= 0.0 && 0.0 < sb)
+            } else if turn < 0.0 {
+                (CLOCKWISE, sb <= 0.0 && 0.0 < sa)
+            } else {
+                (ZERO, false)
+            };
+            let add = bits | if crosses { ONE } else { 0 };
+            let s = &mut state[i as usize];
+            *s |= add | (*s & add & ONE) << 1;
+        }
+    }
+    for ((&v, &s), frame) in candidates.iter().zip(&state).zip(&frames) {
+        if frame.is_some() && once_around(s) {
+            flat[v as usize / 64] |= 1 << (v % 64);
+        }
+    }
+}
+
+fn sub(a: Point, b: Point) -> Point {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: Point, b: Point) -> Point {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: Point) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 /// What face `t` adds to the state of each of its corners' vertices, and whether it is collinear.
@@ -251,6 +362,34 @@ mod tests {
         assert!(flat[1..].iter().all(|&f| f), "{flat:?}");
     }
 
+    /// A cube's corners: along every coordinate axis some of a corner's faces have no area, so no
+    /// axis flattens its star; along its own normal (the diagonal, or near it) every corner is flat.
+    #[test]
+    fn cube_corners_are_flat_along_their_own_axis_only() {
+        let points: Vec<Point> = (0..8)
+            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+            .collect();
+        let triangles = [
+            [0, 2, 3],
+            [0, 3, 1],
+            [4, 5, 7],
+            [4, 7, 6],
+            [0, 1, 5],
+            [0, 5, 4],
+            [2, 6, 7],
+            [2, 7, 3],
+            [0, 4, 6],
+            [0, 6, 2],
+            [1, 3, 7],
+            [1, 7, 5],
+        ];
+        let table = CornerTable::build(&triangles, points.len());
+        let along_axes = flat_stars_with(&points, &table, false).flat;
+        let along_own = flat_stars(&points, &table).flat;
+        assert_eq!(along_axes, vec![0]);
+        assert_eq!(along_own, vec![0xff]);
+    }
+
     /// The claim the search rests on, tested on 30,000 random closed fans whose spokes lie on a
     /// small integer grid (so that faces are often exactly coplanar, fold onto an edge or touch
     /// along a spoke), most going around once, some with two spokes swapped or turned around an
@@ -306,6 +445,72 @@ mod tests {
         assert!(
             flat_fans > 3000 && meeting_fans > 3000,
             "{flat_fans} flat, {meeting_fans} meeting"
+        );
+    }
+
+    /// The same claim for stars no coordinate axis flattens: 30,000 random closed fans with spokes
+    /// on a small integer grid in every direction, going around a random grid direction (most
+    /// once, some with two spokes swapped), so that faces often lie in the axes' planes, fold,
+    /// touch or cross. Where the star is flat along its own axis, no two of its faces meet; many
+    /// stars are flat that way only, and many have faces that meet.
+    #[test]
+    fn faces_of_a_star_flat_along_its_own_axis_never_meet() {
+        let mut next = crate::geometry::xorshift(0x0c0f_fee5);
+        let c = |r: u64, x: u64| (x % (2 * r + 1)) as f64 - r as f64;
+        let (mut own_only, mut meeting_fans) = (0, 0);
+        for _ in 0..30_000 {
+            let d = [c(2, next()), c(2, next()), c(2, next())];
+            if d == [0.0; 3] {
+                continue;
+            }
+            // A frame across d, only to sort the spokes around it.
+            let least = (0..3).fold(0, |m, k| if d[k].abs() < d[m].abs() { k } else { m });
+            let mut axis = [0.0; 3];
+            axis[least] = 1.0;
+            let (x, y) = (cross(d, axis), cross(d, cross(d, axis)));
+            let dot = |a: Point, b: Point| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+            let n = 3 + (next() % 6) as usize;
+            let mut spokes: Vec<Point> = (0..n)
+                .map(|_| [c(3, next()), c(3, next()), c(3, next())])
+                .filter(|p| norm(cross(*p, d)) > 0.0)
+                .collect();
+            spokes.sort_by(|p, q| {
+                let angle = |p: &Point| dot(*p, y).atan2(dot(*p, x));
+                angle(p).total_cmp(&angle(q))
+            });
+            spokes.dedup();
+            if spokes.len() < 3 {
+                continue;
+            }
+            if next().is_multiple_of(4) {
+                let len = spokes.len() as u64;
+                let (i, j) = (next() % len, next() % len);
+                spokes.swap(i as usize, j as usize);
+            }
+            let (points, triangles) = fan(&spokes);
+            if triangles.iter().any(|t| {
+                let [a, b, c] = t.map(|v| points[v as usize]);
+                collinear(a, b, c)
+            }) {
+                continue;
+            }
+            let meets = (0..triangles.len()).any(|i| {
+                (i + 1..triangles.len()).any(|j| {
+                    let (f, g) = (triangles[i], triangles[j]);
+                    let at = |t: [u32; 3]| t.map(|v| points[v as usize]);
+                    faces_meet(f, at(f), g, at(g))
+                })
+            });
+            let table = CornerTable::build(&triangles, points.len());
+            let flat = is_set(&flat_stars(&points, &table).flat, 0);
+            let along_axes = is_set(&flat_stars_with(&points, &table, false).flat, 0);
+            assert!(!(flat && meets), "{spokes:?}");
+            own_only += usize::from(flat && !along_axes);
+            meeting_fans += usize::from(meets);
+        }
+        assert!(
+            own_only > 1000 && meeting_fans > 3000,
+            "{own_only} flat along their own axis only, {meeting_fans} meeting"
         );
     }
 }
