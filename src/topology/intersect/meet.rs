@@ -538,11 +538,11 @@ pub(super) fn o2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     orient2d(p(a), p(b), p(c))
 }
 
-fn sub(a: Point, b: Point) -> Point {
+pub(super) fn sub(a: Point, b: Point) -> Point {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn cross(a: Point, b: Point) -> Point {
+pub(super) fn cross(a: Point, b: Point) -> Point {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],

@@ -29,7 +29,7 @@ use rayon::prelude::*;
 
 use crate::corner_table::CornerTable;
 
-use super::meet::{o3, turns, Point, AXES};
+use super::meet::{cross, o3, sub, turns, Point, AXES};
 
 /// Per axis `k`, five bits of a vertex's state: some face of its star turns counter-clockwise,
 /// clockwise, not at all in that projection; one crossing seen; a second crossing seen.
@@ -188,18 +188,6 @@ fn along_own_axes(points: &[Point], table: &CornerTable, candidates: &[u32], fla
     }
 }
 
-fn sub(a: Point, b: Point) -> Point {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: Point, b: Point) -> Point {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 fn norm(a: Point) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
@@ -268,6 +256,24 @@ mod tests {
         let n = spokes.len() as u32;
         let triangles = (0..n).map(|i| [0, 1 + i, 1 + (i + 1) % n]).collect();
         (points, triangles)
+    }
+
+    /// Whether two faces meet ([`faces_meet`], no stars), or `None` when a face is collinear (the
+    /// search leaves those out).
+    fn any_pair_meets(points: &[Point], triangles: &[[u32; 3]]) -> Option<bool> {
+        let at = |t: [u32; 3]| t.map(|v| points[v as usize]);
+        if triangles.iter().any(|&t| {
+            let [a, b, c] = at(t);
+            collinear(a, b, c)
+        }) {
+            return None;
+        }
+        Some((0..triangles.len()).any(|i| {
+            (i + 1..triangles.len()).any(|j| {
+                let (f, g) = (triangles[i], triangles[j]);
+                faces_meet(f, at(f), g, at(g))
+            })
+        }))
     }
 
     /// Spokes at the given angles (degrees), radius 1, alternating heights: a fan that turns
@@ -424,19 +430,9 @@ mod tests {
                 p.rotate_left(turn);
             }
             let (points, triangles) = fan(&spokes);
-            if triangles.iter().any(|t| {
-                let [a, b, c] = t.map(|v| points[v as usize]);
-                collinear(a, b, c)
-            }) {
+            let Some(meets) = any_pair_meets(&points, &triangles) else {
                 continue;
-            }
-            let meets = (0..triangles.len()).any(|i| {
-                (i + 1..triangles.len()).any(|j| {
-                    let (f, g) = (triangles[i], triangles[j]);
-                    let at = |t: [u32; 3]| t.map(|v| points[v as usize]);
-                    faces_meet(f, at(f), g, at(g))
-                })
-            });
+            };
             let flat = flat_of(&points, &triangles)[0];
             assert!(!(flat && meets), "{spokes:?}");
             flat_fans += usize::from(flat);
@@ -488,19 +484,9 @@ mod tests {
                 spokes.swap(i as usize, j as usize);
             }
             let (points, triangles) = fan(&spokes);
-            if triangles.iter().any(|t| {
-                let [a, b, c] = t.map(|v| points[v as usize]);
-                collinear(a, b, c)
-            }) {
+            let Some(meets) = any_pair_meets(&points, &triangles) else {
                 continue;
-            }
-            let meets = (0..triangles.len()).any(|i| {
-                (i + 1..triangles.len()).any(|j| {
-                    let (f, g) = (triangles[i], triangles[j]);
-                    let at = |t: [u32; 3]| t.map(|v| points[v as usize]);
-                    faces_meet(f, at(f), g, at(g))
-                })
-            });
+            };
             let table = CornerTable::build(&triangles, points.len());
             let flat = is_set(&flat_stars(&points, &table).flat, 0);
             let along_axes = is_set(&flat_stars_with(&points, &table, false).flat, 0);
