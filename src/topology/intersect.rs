@@ -13,7 +13,9 @@
 //!   pool for big meshes, except the pairs that share a vertex whose star is flat (`stars`: the
 //!   faces around it project one to one onto a coordinate plane, so they meet only where they
 //!   share that vertex or an edge; decided exactly, and true of nearly every vertex of a smooth
-//!   surface, it leaves out most of the pairs neighbouring faces make);
+//!   surface, it leaves out most of the pairs neighbouring faces make), and the pairs within a
+//!   tree node whose faces are a flat patch (`patches`: seen along an axis, the faces' shadows
+//!   tile the inside of simple loops once, so none of them meet);
 //! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
 //!   come from the Corner Table's welded vertex ids.
 //!
@@ -21,6 +23,7 @@
 //! coordinate is beyond 2^±100 is first scaled by a power of two, which changes no sign.
 
 mod meet;
+mod patches;
 mod stars;
 mod tree;
 
@@ -161,6 +164,8 @@ pub(crate) fn intersect_table(
 #[derive(Debug, Clone, Copy)]
 struct Face {
     vertices: [u32; 3],
+    /// Its table face.
+    t: u32,
     /// The face's number in the findings.
     face: u32,
     component: u32,
@@ -198,6 +203,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
             boxes.push(tree::box_of(&[a, b, c]));
             kept.push(Face {
                 vertices: triangles[t as usize],
+                t,
                 face: surface.number.map_or(t, |n| n[t as usize]),
                 component: (surface.component)(t),
             });
@@ -228,6 +234,10 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         .map(|&i| kept[i as usize])
         .collect();
     drop(kept);
+    let mut place = vec![u32::MAX; nt];
+    for (p, f) in faces.iter().enumerate() {
+        place[f.t as usize] = p as u32;
+    }
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
     // walk skips those pairs.
     let tree = Tree::build(&boxes, &order, &|p| {
@@ -235,7 +245,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         let flat = (0..3).fold(0, |m, k| {
             m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
         });
-        (vertices, flat)
+        (vertices, flat, stars.turns[faces[p].t as usize])
     });
     drop((boxes, order, stars));
 
@@ -257,6 +267,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         shared: &shared,
         tally: Tally::default(),
         row: None,
+        patches: patches::Patches::new(points, surface.table, &place),
     };
     tree.walk(&mut finder);
 
@@ -329,6 +340,7 @@ struct Finder<'a> {
     tally: Tally,
     /// The face of the current row of pairs and its plane.
     row: Option<(u32, meet::Plane)>,
+    patches: patches::Patches<'a>,
 }
 
 impl Visit for Finder<'_> {
@@ -337,6 +349,7 @@ impl Visit for Finder<'_> {
             shared: self.shared,
             tally: Tally::default(),
             row: None,
+            patches: self.patches.fork(),
         }
     }
 
@@ -406,5 +419,10 @@ impl Visit for Finder<'_> {
 
     fn done(&self) -> bool {
         self.shared.search.first_only && self.shared.stop.load(Relaxed)
+    }
+
+    fn no_pairs_within(&mut self, places: std::ops::Range<usize>, bits: u8) -> bool {
+        let faces = self.shared.faces;
+        self.patches.is_flat(places, bits, |p| faces[p].t)
     }
 }

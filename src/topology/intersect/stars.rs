@@ -30,6 +30,7 @@ use rayon::prelude::*;
 use crate::corner_table::CornerTable;
 
 use super::meet::{cross, o3, sub, turns, Point, AXES};
+use super::patches::turn_bits;
 
 /// Per axis `k`, five bits of a vertex's state: some face of its star turns counter-clockwise,
 /// clockwise, not at all in that projection; one crossing seen; a second crossing seen.
@@ -50,6 +51,8 @@ pub(super) struct Stars {
     /// One bit per face: its three points are exactly on a line (every projection of it has zero
     /// area), which the search leaves out.
     pub(super) collinear: Vec<u64>,
+    /// Per face, its turn bits ([`super::patches::turn_bits`]).
+    pub(super) turns: Vec<u8>,
 }
 
 /// The flat stars and collinear faces of `table` over `points`. Faces are read in parallel runs
@@ -65,16 +68,19 @@ fn flat_stars_with(points: &[Point], table: &CornerTable, own_axis: bool) -> Sta
     let triangles = table.triangles();
     let mut parts = vec![[0u16; 3]; triangles.len()];
     let mut collinear = vec![0u64; triangles.len().div_ceil(64)];
+    let mut turns = vec![0u8; triangles.len()];
     parts
         .par_chunks_mut(RUN)
         .zip(collinear.par_chunks_mut(RUN / 64))
+        .zip(turns.par_chunks_mut(RUN))
         .enumerate()
-        .for_each(|(r, (parts, collinear))| {
-            for (i, part) in parts.iter_mut().enumerate() {
+        .for_each(|(r, ((parts, collinear), turns))| {
+            for (i, (part, bits)) in parts.iter_mut().zip(turns).enumerate() {
                 let t = r * RUN + i;
-                let (p, flat) = corner_parts(points, table, t);
+                let (p, turn) = corner_parts(points, table, t);
                 *part = p;
-                collinear[i / 64] |= u64::from(flat) << (i % 64);
+                *bits = turn_bits(turn);
+                collinear[i / 64] |= u64::from(turn == [0.0; 3]) << (i % 64);
             }
         });
     let mut state = vec![0u16; table.vertex_count()];
@@ -99,7 +105,11 @@ fn flat_stars_with(points: &[Point], table: &CornerTable, own_axis: bool) -> Sta
     if own_axis && !closed_not_flat.is_empty() {
         along_own_axes(points, table, &closed_not_flat, &mut flat);
     }
-    Stars { flat, collinear }
+    Stars {
+        flat,
+        collinear,
+        turns,
+    }
 }
 
 /// Whether one axis's five bits say its faces all turn one way and cross the ray once.
@@ -192,9 +202,10 @@ fn norm(a: Point) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// What face `t` adds to the state of each of its corners' vertices, and whether it is collinear.
+/// What face `t` adds to the state of each of its corners' vertices, and its turns (all zero:
+/// collinear).
 #[inline]
-fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], bool) {
+fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], [f64; 3]) {
     let tri = table.triangles()[t];
     let p = tri.map(|v| points[v as usize]);
     // A face turns the same way seen from each of its corners.
@@ -223,7 +234,7 @@ fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], b
         }
     }
     // Collinear: no projection has area (as `meet::collinear` says).
-    (parts, turn == [0.0; 3])
+    (parts, turn)
 }
 
 /// Whether the edge opposite corner `c` is a manifold edge whose two faces traverse it in opposite

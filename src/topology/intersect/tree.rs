@@ -23,6 +23,10 @@ use rayon::prelude::*;
 /// Faces per leaf.
 pub(super) const LEAF: usize = 8;
 
+/// Nodes of this level and above (with at least `LEAF << PATCH_LEVEL` faces) are offered to
+/// [`Visit::no_pairs_within`] when their faces share a turn bit.
+const PATCH_LEVEL: usize = 2;
+
 /// A node with at least this many faces splits its work into parallel tasks.
 const PARALLEL_FACES: usize = 1 << 13;
 
@@ -100,6 +104,11 @@ pub(super) trait Visit: Send + Sized {
     fn pair(&mut self, a: u32, b: u32);
     /// The walk may stop now.
     fn done(&self) -> bool;
+    /// Whether no two of the faces at `places` can meet, so that the walk skips their pairs;
+    /// `bits`: the turn bits they all share ([`super::patches::turn_bits`]), not zero.
+    fn no_pairs_within(&mut self, _places: std::ops::Range<usize>, _bits: u8) -> bool {
+        false
+    }
 }
 
 /// The faces of one leaf, coordinate by coordinate, so that one face is tested against all of them
@@ -123,19 +132,23 @@ pub(super) struct Tree {
     leaves: Vec<Leaf>,
     /// The boxes of every level, leaves first, the root last.
     levels: Vec<Vec<Box3>>,
+    /// The turn bits all faces of a node share, level by level as `levels`.
+    bits: Vec<Vec<u8>>,
+    /// The number of faces.
+    faces: usize,
 }
 
 impl Tree {
     /// The tree over `boxes` taken in `order`. `faces(p)` gives the vertices of the face at place
     /// `p` of the order (ids below [`crate::corner_table::MAX_VERTICES`]) and, bit `k`, whether
     /// pairs of faces sharing its vertex `k` are skipped: a property of the vertex, the same from
-    /// every face that has it.
+    /// every face that has it; and its turn bits ([`super::patches::turn_bits`]).
     pub(super) fn build(
         boxes: &[Box3],
         order: &[u32],
-        faces: &(dyn Fn(usize) -> ([u32; 3], u8) + Sync),
+        faces: &(dyn Fn(usize) -> ([u32; 3], u8, u8) + Sync),
     ) -> Tree {
-        let leaves: Vec<Leaf> = order
+        let (leaves, leaf_bits): (Vec<Leaf>, Vec<u8>) = order
             .par_chunks(LEAF)
             .with_min_len(1 << 12)
             .enumerate()
@@ -145,19 +158,21 @@ impl Tree {
                     vertices: [[FREE; LEAF]; 3],
                     skipped: [0; LEAF],
                 };
+                let mut all = u8::MAX;
                 for (j, &i) in chunk.iter().enumerate() {
                     for (row, &x) in leaf.boxes.iter_mut().zip(&boxes[i as usize]) {
                         row[j] = x;
                     }
-                    let (vertices, skipped) = faces(LEAF * l + j);
+                    let (vertices, skipped, bits) = faces(LEAF * l + j);
                     for (row, v) in leaf.vertices.iter_mut().zip(vertices) {
                         row[j] = v;
                     }
                     leaf.skipped[j] = skipped;
+                    all &= bits;
                 }
-                leaf
+                (leaf, all)
             })
-            .collect();
+            .unzip();
         // A leaf's box: f32 min and max skip the NaNs of free places.
         let mut levels: Vec<Vec<Box3>> = vec![leaves
             .par_iter()
@@ -181,7 +196,21 @@ impl Tree {
                 .collect();
             levels.push(up);
         }
-        Tree { leaves, levels }
+        let mut bits = vec![leaf_bits];
+        while bits.last().is_some_and(|l| l.len() > 1) {
+            let below = bits.last().expect("a level");
+            let up = below
+                .chunks(2)
+                .map(|c| c.iter().fold(u8::MAX, |a, b| a & b))
+                .collect();
+            bits.push(up);
+        }
+        Tree {
+            leaves,
+            levels,
+            bits,
+            faces: order.len(),
+        }
     }
 
     /// Calls `visit.pair` once for every unordered pair of faces whose boxes overlap.
@@ -249,6 +278,13 @@ impl Tree {
     fn within<V: Visit>(&self, k: usize, i: usize, visit: &mut V) {
         if visit.done() {
             return;
+        }
+        let bits = self.bits[k][i];
+        if k >= PATCH_LEVEL && bits != 0 {
+            let places = (LEAF << k) * i..self.faces.min((LEAF << k) * (i + 1));
+            if visit.no_pairs_within(places, bits) {
+                return;
+            }
         }
         if k == 0 {
             let leaf = &self.leaves[i];
@@ -426,7 +462,7 @@ mod tests {
         let faces = |p: usize| {
             let v = vertices[order[p] as usize];
             let bits = (0..3).fold(0, |m, k| m | u8::from(skipped[v[k] as usize]) << k);
-            (v, bits)
+            (v, bits, 0)
         };
         let mut found = Pairs(Vec::new());
         Tree::build(&boxes, &order, &faces).walk(&mut found);
