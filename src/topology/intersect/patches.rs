@@ -32,6 +32,8 @@
 //! Not yet taken: a run whose border passes a vertex twice (two fans of the run meeting there), the
 //! most common reason a run of a smooth mesh is turned down.
 
+use std::cmp::Ordering;
+
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 
 use super::meet::{o2, Point, AXES};
@@ -215,10 +217,11 @@ impl<'a> Patches<'a> {
         let way = if counter { 1 } else { -1 };
         (0..self.loops.len()).all(|l| {
             let points = self.loops[l] as usize..end(l);
-            // The loop's own way round, from its lowest point (a convex corner).
+            // The loop's own way round, from its lowest point (a convex corner). Compared by value,
+            // so that -0 and 0 are one x; the shadow's points are finite (their faces turn).
             let low = points
                 .clone()
-                .min_by(|&a, &b| s[a].partial_cmp(&s[b]).expect("finite"))
+                .min_by(|&a, &b| s[a].partial_cmp(&s[b]).unwrap_or(Ordering::Equal))
                 .expect("a point");
             let before = points
                 .clone()
