@@ -11,7 +11,9 @@
 //!
 //! The walk: within a node, the pairs within each child and the pairs between the two children;
 //! between two nodes whose boxes overlap, the pairs between their children. Every unordered pair of
-//! faces is looked at once, where the walk first separates them. Near the root the three parts run as
+//! faces is looked at once, where the walk first separates them, except inside a node (of
+//! `LEAF << PATCH_LEVEL` faces or more, all sharing a turn bit) that the visitor finds free of
+//! pairs ([`Visit::no_pairs_within`], the flat patches), which is not walked. Near the root the three parts run as
 //! parallel tasks (`rayon::join`) on the current pool; each task adds its findings to its own
 //! [`Visit`] and the tasks' findings are merged, so the answer does not depend on the thread count.
 
