@@ -485,7 +485,7 @@ fn strictly_same_side(a: f64, b: f64) -> bool {
 }
 
 /// One strictly positive, the other strictly negative.
-fn strictly_opposite(a: f64, b: f64) -> bool {
+pub(super) fn strictly_opposite(a: f64, b: f64) -> bool {
     (a > 0.0 && b < 0.0) || (a < 0.0 && b > 0.0)
 }
 

@@ -36,7 +36,7 @@ use std::cmp::Ordering;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 
-use super::meet::{o2, Point, AXES};
+use super::meet::{o2, strictly_opposite, Point, AXES};
 
 /// Bits of a face's turn: bit `2k`, counter-clockwise when coordinate `k` is dropped; bit
 /// `2k + 1`, clockwise. A set can be a flat patch along `k` only when all its faces share one of
@@ -268,8 +268,7 @@ fn same_way(v: [f64; 2], a: [f64; 2], b: [f64; 2]) -> bool {
 fn segments_meet(p: [f64; 2], q: [f64; 2], a: [f64; 2], b: [f64; 2]) -> bool {
     let (d1, d2) = (o2(a, b, p), o2(a, b, q));
     let (d3, d4) = (o2(p, q, a), o2(p, q, b));
-    let opposite = |x: f64, y: f64| (x > 0.0 && y < 0.0) || (x < 0.0 && y > 0.0);
-    if opposite(d1, d2) && opposite(d3, d4) {
+    if strictly_opposite(d1, d2) && strictly_opposite(d3, d4) {
         return true;
     }
     let within = |s: [f64; 2], t: [f64; 2], x: [f64; 2]| {

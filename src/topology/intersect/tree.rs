@@ -89,6 +89,21 @@ fn join(a: &Box3, b: &Box3) -> Box3 {
     ]
 }
 
+/// The levels of a binary tree over `leaves`, leaves first, up to one root: node `i` of level
+/// `k + 1` joins nodes `2i` and `2i + 1` of level `k` (a last node alone is kept as it is).
+fn levels_above<T: Copy>(leaves: Vec<T>, join: impl Fn(T, T) -> T) -> Vec<Vec<T>> {
+    let mut levels = vec![leaves];
+    while levels.last().is_some_and(|l| l.len() > 1) {
+        let below = levels.last().expect("a level");
+        let up = below
+            .chunks(2)
+            .map(|c| c[1..].iter().fold(c[0], |a, &b| join(a, b)))
+            .collect();
+        levels.push(up);
+    }
+    levels
+}
+
 /// The order of `boxes` along a Morton curve through their centres (ties keep their order).
 pub(super) fn morton_order(boxes: &[Box3]) -> Vec<u32> {
     let centre = |b: &Box3| std::array::from_fn(|k| 0.5 * b[k] + 0.5 * b[k + 3]);
@@ -176,37 +191,24 @@ impl Tree {
             })
             .unzip();
         // A leaf's box: f32 min and max skip the NaNs of free places.
-        let mut levels: Vec<Vec<Box3>> = vec![leaves
-            .par_iter()
-            .with_min_len(1 << 12)
-            .map(|leaf| {
-                std::array::from_fn(|c| {
-                    let lanes = leaf.boxes[c].iter().copied();
-                    if c < 3 {
-                        lanes.fold(f32::NAN, f32::min)
-                    } else {
-                        lanes.fold(f32::NAN, f32::max)
-                    }
+        let levels = levels_above(
+            leaves
+                .par_iter()
+                .with_min_len(1 << 12)
+                .map(|leaf| {
+                    std::array::from_fn(|c| {
+                        let lanes = leaf.boxes[c].iter().copied();
+                        if c < 3 {
+                            lanes.fold(f32::NAN, f32::min)
+                        } else {
+                            lanes.fold(f32::NAN, f32::max)
+                        }
+                    })
                 })
-            })
-            .collect()];
-        while levels.last().is_some_and(|l| l.len() > 1) {
-            let below = levels.last().expect("a level");
-            let up = below
-                .chunks(2)
-                .map(|c| c.iter().fold(c[0], |a, b| join(&a, b)))
-                .collect();
-            levels.push(up);
-        }
-        let mut bits = vec![leaf_bits];
-        while bits.last().is_some_and(|l| l.len() > 1) {
-            let below = bits.last().expect("a level");
-            let up = below
-                .chunks(2)
-                .map(|c| c.iter().fold(u8::MAX, |a, b| a & b))
-                .collect();
-            bits.push(up);
-        }
+                .collect(),
+            |a, b| join(&a, &b),
+        );
+        let bits = levels_above(leaf_bits, |a, b| a & b);
         Tree {
             leaves,
             levels,
