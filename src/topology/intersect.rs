@@ -178,7 +178,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let scaled = scaled_points(surface.points);
     let points: &[[f64; 3]] = scaled.as_deref().unwrap_or(surface.points);
     let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
-    let stars = stars::flat_stars(points, surface.table);
+    let mut stars = stars::flat_stars(points, surface.table);
 
     // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
     // the faces kept, each with its box and what the walk needs of it. One thread gathers them in
@@ -247,6 +247,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         });
         (vertices, flat, stars.turns[faces[p].t as usize])
     });
+    let along = std::mem::take(&mut stars.along);
     drop((boxes, order, stars));
 
     let numbers = surface
@@ -267,7 +268,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         shared: &shared,
         tally: Tally::default(),
         row: None,
-        patches: patches::Patches::new(points, surface.table, &place),
+        patches: patches::Patches::new(points, surface.table, &place, &along),
     };
     tree.walk(&mut finder);
 

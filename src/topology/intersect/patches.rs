@@ -7,13 +7,18 @@
 //!   `orient2d`);
 //! - every edge of a face of `S` either has its other face outside `S` (a border edge of `S`), or
 //!   is a manifold edge whose two faces, both in `S`, traverse it in opposite directions;
-//! - the border edges of `S` join into closed loops (each vertex starts at most one of them), at
-//!   most [`MAX_LOOPS`], whose shadows are simple polygons apart from each other: edges that do
-//!   not follow each other share no point, and edges that do follow each other do not fold back
-//!   (exact `orient2d` and comparisons);
+//! - the border edges of `S` join into closed loops, at most [`MAX_LOOPS`], each passing a vertex
+//!   once, whose shadows are simple polygons apart from each other: edges that do not follow each
+//!   other share no point, and edges that do follow each other do not fold back (exact `orient2d`
+//!   and comparisons). The one exception is a **pinch**: a vertex that starts two border edges
+//!   (two fans of `S` meet there; never three), whose whole star is flat along `k`
+//!   ([`super::stars`]). Its spokes point different ways, so edges that end at it meet only there,
+//!   and the two fans' shadows are wedges apart: its two incoming edges are joined to its two
+//!   outgoing ones (either way; a path that comes back to a pinch closes a loop there), and the
+//!   loops through it touch there without crossing;
 //! - on the faces' side of every loop, the loops wind once: the loop's own turn (1 for a loop
-//!   around its faces, 0 for a hole's) plus the other loops' winding numbers around its lowest
-//!   point is 1.
+//!   around its faces, 0 for a hole's; from its lowest point, a convex corner) plus the other
+//!   loops' winding numbers around a point of it that is no pinch (so on none of them) is 1.
 //!
 //! Why no two faces of such a set meet. Count, for a point `q` of the plane on no projected edge,
 //! the faces whose shadows hold it: each face adds the winding number of its shadow's outline
@@ -25,18 +30,21 @@
 //! along what their faces share: where two shadows touch at a point that is not the shadow of a
 //! vertex or edge the faces share, the faces around that point either cover some nearby point
 //! twice (impossible, as just shown) or leave gaps whose sides are border edges of `S` passing
-//! through that point from different places of the loops, which simple loops apart do not do. So
-//! two faces have a common point only over the shadow of a vertex or an edge they share; the
-//! projection is one to one on each face, so the common point is that vertex or edge.
+//! through that point from different places of the loops, which simple loops apart do not do but
+//! at a pinch, where every face around is on the pinch itself. So two faces have a common point
+//! only over the shadow of a vertex or an edge they share; the projection is one to one on each
+//! face, so the common point is that vertex or edge.
 //!
-//! Not yet taken: a run whose border passes a vertex twice (two fans of the run meeting there), the
-//! most common reason a run of a smooth mesh is turned down.
+//! Loops that touch at pinches without crossing still split the plane as loops apart do: along a
+//! loop, every other loop is wholly on one side of it, so the winding on the loop's faces' side
+//! is the same all along, and one point of it tells. Pinches are where runs of the walk's order
+//! meet themselves across a corner; taking them lets whole halves of a smooth mesh be one patch.
 
 use std::cmp::Ordering;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 
-use super::meet::{o2, strictly_opposite, Point, AXES};
+use super::meet::{o2, strictly_opposite, Axes, Point, AXES};
 
 /// Bits of a face's turn: bit `2k`, counter-clockwise when coordinate `k` is dropped; bit
 /// `2k + 1`, clockwise. A set can be a flat patch along `k` only when all its faces share one of
@@ -59,10 +67,19 @@ pub(super) struct Patches<'a> {
     pub(super) table: &'a CornerTable,
     /// The walk's place of every table face (`u32::MAX`: not in the walk).
     pub(super) place: &'a [u32],
-    /// Border edges `(from, to)`, then the loop's points.
+    /// Per vertex, bit `k`: its star is flat dropping coordinate `k` ([`super::stars::Stars::along`]).
+    pub(super) along: &'a [u8],
+    /// Border edges `(from, to)`.
     edges: Vec<(u32, u32)>,
+    /// The vertices that start two border edges, ascending, and where each is on `path`
+    /// (`u32::MAX`: not on it).
+    pinches: Vec<u32>,
+    pinch_at: Vec<u32>,
+    /// The open path of the loop being followed: its points' vertices.
+    path: Vec<u32>,
+    /// The loops' points, loop after loop, each point's vertex and the next point of its loop.
     shadow: Vec<[f64; 2]>,
-    /// Per point of `shadow`, the next point of its loop.
+    ids: Vec<u32>,
     next: Vec<u32>,
     /// Where each loop starts in `shadow`.
     loops: Vec<u32>,
@@ -72,13 +89,23 @@ pub(super) struct Patches<'a> {
 }
 
 impl<'a> Patches<'a> {
-    pub(super) fn new(points: &'a [Point], table: &'a CornerTable, place: &'a [u32]) -> Self {
+    pub(super) fn new(
+        points: &'a [Point],
+        table: &'a CornerTable,
+        place: &'a [u32],
+        along: &'a [u8],
+    ) -> Self {
         Patches {
             points,
             table,
             place,
+            along,
             edges: Vec::new(),
+            pinches: Vec::new(),
+            pinch_at: Vec::new(),
+            path: Vec::new(),
             shadow: Vec::new(),
+            ids: Vec::new(),
             next: Vec::new(),
             loops: Vec::new(),
             used: Vec::new(),
@@ -89,7 +116,7 @@ impl<'a> Patches<'a> {
 
     /// A copy with its own scratch space, for a parallel task.
     pub(super) fn fork(&self) -> Self {
-        Patches::new(self.points, self.table, self.place)
+        Patches::new(self.points, self.table, self.place, self.along)
     }
 
     /// Whether the faces at places `places` (table faces `face(p)`), whose turn bits all share
@@ -129,47 +156,103 @@ impl<'a> Patches<'a> {
             }
         }
         self.edges.sort_unstable();
-        if self.edges.len() < 3 || self.edges.windows(2).any(|w| w[0].0 == w[1].0) {
+        if self.edges.len() < 3 {
             return false;
         }
-        // The loops: each border edge is followed by the one starting where it ends.
-        let axes = AXES[k];
+        // Pinches: a vertex may start two border edges (two fans of the patch meet there) when its
+        // whole star is flat along this axis, so that the fans' shadows are wedges apart; never
+        // three.
+        self.pinches.clear();
+        for w in self.edges.windows(2) {
+            if w[0].0 == w[1].0 {
+                let v = w[0].0;
+                if self.pinches.last() == Some(&v) || self.along[v as usize] & (1 << k) == 0 {
+                    return false;
+                }
+                self.pinches.push(v);
+            }
+        }
+        self.follow_loops(AXES[k]) && self.simple() && self.wound_once(bits & (1 << (2 * k)) != 0)
+    }
+
+    /// Joins the border edges into loops that pass each vertex once: each edge is followed by an
+    /// unused edge starting where it ends, and a path that comes back to a pinch it passed
+    /// already closes there as a loop of its own. At a pinch (two fans, whose wedges are apart)
+    /// either way of joining its two incoming edges to its two outgoing ones gives loops that
+    /// touch there without crossing. False when the edges do not close into at most
+    /// [`MAX_LOOPS`] loops.
+    fn follow_loops(&mut self, axes: Axes) -> bool {
         self.shadow.clear();
+        self.ids.clear();
         self.next.clear();
         self.loops.clear();
         self.used.clear();
         self.used.resize(self.edges.len(), false);
+        self.pinch_at.clear();
+        self.pinch_at.resize(self.pinches.len(), u32::MAX);
         for first in 0..self.edges.len() {
             if self.used[first] {
                 continue;
             }
-            if self.loops.len() == MAX_LOOPS {
-                return false;
-            }
-            let begin = self.shadow.len();
+            let start = self.edges[first].0;
+            self.path.clear();
             let mut at = first;
             loop {
                 self.used[at] = true;
                 let (from, to) = self.edges[at];
-                self.shadow.push(axes.of(self.points[from as usize]));
-                self.next.push(self.shadow.len() as u32);
-                match self.edges.binary_search_by_key(&to, |e| e.0) {
-                    Ok(i) if i == first => break,
-                    Ok(i) if !self.used[i] => at = i,
-                    _ => return false,
+                if let Ok(p) = self.pinches.binary_search(&from) {
+                    let on_path = self.pinch_at[p];
+                    if on_path != u32::MAX && !self.close(on_path as usize, axes) {
+                        return false;
+                    }
+                    self.pinch_at[p] = self.path.len() as u32;
+                }
+                self.path.push(from);
+                if to == start {
+                    break;
+                }
+                let out = self.edges.partition_point(|e| e.0 < to);
+                match (out..self.edges.len())
+                    .take_while(|&i| self.edges[i].0 == to)
+                    .find(|&i| !self.used[i])
+                {
+                    Some(i) => at = i,
+                    None => return false,
                 }
             }
-            *self.next.last_mut().expect("a point") = begin as u32;
-            self.loops.push(begin as u32);
+            if !self.close(0, axes) {
+                return false;
+            }
         }
-        self.simple() && self.wound_once(bits & (1 << (2 * k)) != 0)
+        true
+    }
+
+    /// Ends the path's points from `from` on as a loop; false past [`MAX_LOOPS`].
+    fn close(&mut self, from: usize, axes: Axes) -> bool {
+        if self.loops.len() == MAX_LOOPS || self.path.len() - from < 3 {
+            return false;
+        }
+        let begin = self.shadow.len() as u32;
+        self.loops.push(begin);
+        for &v in &self.path[from..] {
+            self.shadow.push(axes.of(self.points[v as usize]));
+            self.ids.push(v);
+            self.next.push(self.shadow.len() as u32);
+        }
+        *self.next.last_mut().expect("a point") = begin;
+        for v in self.path.drain(from..) {
+            if let Ok(p) = self.pinches.binary_search(&v) {
+                self.pinch_at[p] = u32::MAX;
+            }
+        }
+        true
     }
 
     /// Whether the closed polygons `shadow` (point `i` is followed by `next[i]`) are simple and
     /// apart: a sweep along x over their edges' spans, the edges whose boxes overlap tested
     /// exactly.
     fn simple(&mut self) -> bool {
-        let (s, next) = (&self.shadow, &self.next);
+        let (s, ids, next) = (&self.shadow, &self.ids, &self.next);
         let n = s.len();
         let edge = |i: usize| (s[i], s[next[i] as usize]);
         let low_x = |i: usize| s[i][0].min(s[next[i] as usize][0]);
@@ -196,6 +279,13 @@ impl<'a> Patches<'a> {
             for &j in &self.active {
                 if next[i as usize] == j || next[j as usize] == i {
                     continue;
+                }
+                // Two spokes of one pinch: apart but for it (its star is flat, so its spokes
+                // point different ways).
+                if let Some(v) = shared_end(ids, i as usize, j as usize, next) {
+                    if self.pinches.binary_search(&v).is_ok() {
+                        continue;
+                    }
                 }
                 let (a, b) = edge(j as usize);
                 let apart_y = p[1].max(q[1]) < a[1].min(b[1]) || a[1].max(b[1]) < p[1].min(q[1]);
@@ -229,7 +319,16 @@ impl<'a> Patches<'a> {
                 .expect("a loop");
             let turn = o2(s[before], s[low], s[next[low] as usize]);
             let own = i32::from(turn.signum() as i32 == way);
-            let p = s[low];
+            // The other loops' winding is taken at a point of this loop that is on none of them:
+            // any but a pinch, which loops touching there share. Near it, on the faces' side,
+            // they wind as much.
+            let Some(at) = points
+                .clone()
+                .find(|&i| self.pinches.binary_search(&self.ids[i]).is_err())
+            else {
+                return false;
+            };
+            let p = s[at];
             let others: i32 = (0..self.loops.len())
                 .filter(|&m| m != l)
                 .map(|m| winding(s, next, self.loops[m] as usize..end(m), p))
@@ -259,6 +358,13 @@ fn winding(s: &[[f64; 2]], next: &[u32], points: std::ops::Range<usize>, p: [f64
         .sum()
 }
 
+/// The vertex that edges `i` and `j` (point `i` to point `next[i]`) both end at, if any.
+fn shared_end(ids: &[u32], i: usize, j: usize, next: &[u32]) -> Option<u32> {
+    let (a, b) = (ids[i], ids[next[i] as usize]);
+    let (c, d) = (ids[j], ids[next[j] as usize]);
+    [a, b].into_iter().find(|&v| v == c || v == d)
+}
+
 /// Whether `a` and `b`, on one line through `v` (neither at `v`), lie on the same side of it.
 fn same_way(v: [f64; 2], a: [f64; 2], b: [f64; 2]) -> bool {
     (0..2).all(|c| a[c].partial_cmp(&v[c]) == b[c].partial_cmp(&v[c]))
@@ -284,6 +390,7 @@ fn segments_meet(p: [f64; 2], q: [f64; 2], a: [f64; 2], b: [f64; 2]) -> bool {
 mod tests {
     use super::*;
     use crate::topology::intersect::meet::{faces_meet, turns};
+    use crate::topology::intersect::stars::flat_stars;
 
     /// Whether all of `triangles` (in this order, all in the walk) are a flat patch, with the turn
     /// bits they share.
@@ -297,7 +404,8 @@ mod tests {
             ))
         });
         let place: Vec<u32> = (0..triangles.len() as u32).collect();
-        Patches::new(points, &table, &place).is_flat(0..triangles.len(), bits, |p| p as u32)
+        let along = flat_stars(points, &table).along;
+        Patches::new(points, &table, &place, &along).is_flat(0..triangles.len(), bits, |p| p as u32)
     }
 
     /// An `n` by `n` grid of squares, two faces each, counter-clockwise seen from +z, at heights
@@ -411,7 +519,8 @@ mod tests {
             }
             tried += 1;
             let place: Vec<u32> = (0..triangles.len() as u32).collect();
-            let mut patches = Patches::new(&points, &table, &place);
+            let along = flat_stars(&points, &table).along;
+            let mut patches = Patches::new(&points, &table, &place, &along);
             if !patches.is_flat(lo..lo + run.len(), bits, |p| p as u32) {
                 continue;
             }
@@ -425,6 +534,128 @@ mod tests {
         assert!(
             flat_runs > 300 && tried - flat_runs > 300,
             "{flat_runs} of {tried}"
+        );
+    }
+
+    /// Whether the faces `part` of `triangles` (all of them in the table, so that stars inside
+    /// are closed) are a flat patch, and whether some vertex starts two of its border edges.
+    fn part_flat(points: &[Point], triangles: &[[u32; 3]], part: &[u32]) -> (bool, bool) {
+        let table = CornerTable::build(triangles, points.len());
+        let mut order: Vec<u32> = part.to_vec();
+        order.extend((0..triangles.len() as u32).filter(|t| !part.contains(t)));
+        let mut place = vec![0; triangles.len()];
+        for (p, &t) in order.iter().enumerate() {
+            place[t as usize] = p as u32;
+        }
+        let bits = part.iter().fold(u8::MAX, |m, &t| {
+            let [a, b, c] = triangles[t as usize].map(|v| points[v as usize]);
+            m & turn_bits(turns(a, b, c))
+        });
+        let along = flat_stars(points, &table).along;
+        let mut patches = Patches::new(points, &table, &place, &along);
+        let flat = patches.is_flat(0..part.len(), bits, |p| order[p]);
+        let mut starts: Vec<u32> = patches.edges.iter().map(|e| e.0).collect();
+        starts.sort_unstable();
+        (flat, starts.windows(2).any(|w| w[0] == w[1]))
+    }
+
+    /// The faces of the squares `(i, j)` of a [`grid`] of `n` that `keep` says.
+    fn squares(n: u32, keep: impl Fn(u32, u32) -> bool) -> Vec<u32> {
+        (0..n * n)
+            .filter(|s| keep(s % n, s / n))
+            .flat_map(|s| [2 * s, 2 * s + 1])
+            .collect()
+    }
+
+    /// Two blocks of squares meeting at one corner (a pinch: the vertex starts two border edges),
+    /// and a ring of squares around a hole whose ends meet at one of the hole's corners: both are
+    /// flat, turned over too. They were turned down before pinches were taken.
+    #[test]
+    fn patches_pinched_at_a_vertex_are_flat() {
+        let bumpy = |i: u32, j: u32| f64::from((i * 7 + j * 3) % 5);
+        let (points, triangles) = grid(6, bumpy, |_, _| false);
+        let turned: Vec<[u32; 3]> = triangles.iter().map(|&[a, b, c]| [a, c, b]).collect();
+        let corners = squares(6, |i, j| {
+            (1..3).contains(&i) && (1..3).contains(&j) || (3..5).contains(&i) && (3..5).contains(&j)
+        });
+        let ring = squares(6, |i, j| {
+            let around = (1..4).contains(&i) && (1..4).contains(&j) && (i, j) != (2, 2);
+            around && (i, j) != (1, 3)
+        });
+        for part in [&corners, &ring] {
+            assert_eq!(part_flat(&points, &triangles, part), (true, true));
+            assert_eq!(part_flat(&points, &turned, part), (true, true));
+        }
+    }
+
+    /// A pinch whose star is open (here a face beside it, outside the patch, is cut loose) is
+    /// turned down: that the fans' wedges are apart rests on the star being flat.
+    #[test]
+    fn a_pinch_needs_a_flat_star() {
+        let (mut points, mut triangles) = grid(6, |_, _| 0.0, |_, _| false);
+        let corners = squares(6, |i, j| {
+            (1..3).contains(&i) && (1..3).contains(&j) || (3..5).contains(&i) && (3..5).contains(&j)
+        });
+        assert_eq!(part_flat(&points, &triangles, &corners), (true, true));
+        // Face 1 of square (3, 2) is (3, 2), (4, 3), (3, 3): its corner on the pinch (3, 3)
+        // becomes a vertex of its own.
+        let pinch = 3 * 7 + 3;
+        let face = &mut triangles[2 * (2 * 6 + 3) + 1];
+        assert_eq!(face[2], pinch);
+        face[2] = points.len() as u32;
+        points.push(points[pinch as usize]);
+        assert_eq!(part_flat(&points, &triangles, &corners), (false, true));
+    }
+
+    /// Random bumpy grids with their points pushed sideways, and random sets of their faces (so
+    /// that many of them are pinched): no set called flat has two faces that meet.
+    #[test]
+    fn no_two_faces_of_a_flat_set_meet() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        let (mut flat_sets, mut pinched, mut tried) = (0, 0, 0);
+        for _ in 0..4000 {
+            let n = 5;
+            let (mut points, triangles) = grid(n, |_, _| 0.0, |_, _| false);
+            let push = next(3);
+            for p in &mut points {
+                p[0] = p[0] * 4.0 + (next(2 * push + 1) as f64 - push as f64);
+                p[1] = p[1] * 4.0 + (next(2 * push + 1) as f64 - push as f64);
+                p[2] = next(3) as f64;
+            }
+            let keep = 3 + next(6);
+            let part: Vec<u32> = (0..triangles.len() as u32)
+                .filter(|_| next(10) < keep)
+                .collect();
+            if part.len() < 2 {
+                continue;
+            }
+            tried += 1;
+            let (flat, pinch) = part_flat(&points, &triangles, &part);
+            if !flat {
+                continue;
+            }
+            flat_sets += 1;
+            pinched += usize::from(pinch);
+            let at = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
+            for (i, &f) in part.iter().enumerate() {
+                for &g in &part[i + 1..] {
+                    let (tf, tg) = (triangles[f as usize], triangles[g as usize]);
+                    assert!(
+                        !faces_meet(tf, at(f), tg, at(g)),
+                        "{tf:?} {tg:?} in {part:?}"
+                    );
+                }
+            }
+        }
+        assert!(
+            pinched > 200 && tried - flat_sets > 300,
+            "{flat_sets} flat ({pinched} pinched) of {tried}"
         );
     }
 }

@@ -53,6 +53,9 @@ pub(super) struct Stars {
     pub(super) collinear: Vec<u64>,
     /// Per face, its turn bits ([`super::patches::turn_bits`]).
     pub(super) turns: Vec<u8>,
+    /// Per vertex of the table, bit `k`: its star is flat dropping coordinate `k` (the pinches of
+    /// a flat patch need it along the patch's axis, [`super::patches`]).
+    pub(super) along: Vec<u8>,
 }
 
 /// The flat stars and collinear faces of `table` over `points`. Faces are read in parallel runs
@@ -92,10 +95,12 @@ fn flat_stars_with(points: &[Point], table: &CornerTable, own_axis: bool) -> Sta
         }
     }
     let mut flat = vec![0u64; state.len().div_ceil(64)];
+    let mut along = vec![0u8; state.len()];
     let mut closed_not_flat = Vec::new();
     for (v, &s) in state.iter().enumerate() {
         if s & OPEN == 0 {
-            if (0..3).any(|k| once_around(s >> (5 * k))) {
+            along[v] = (0..3).fold(0, |m, k| m | u8::from(once_around(s >> (5 * k))) << k);
+            if along[v] != 0 {
                 flat[v / 64] |= 1 << (v % 64);
             } else {
                 closed_not_flat.push(v as u32);
@@ -109,6 +114,7 @@ fn flat_stars_with(points: &[Point], table: &CornerTable, own_axis: bool) -> Sta
         flat,
         collinear,
         turns,
+        along,
     }
 }
 
