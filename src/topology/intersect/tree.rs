@@ -50,26 +50,27 @@ pub(super) fn box_of(points: &[[f64; 3]; 3]) -> Box3 {
     b
 }
 
-/// The largest `f32` at most `x` (finite `x`; beyond the `f32` range, the infinity that way).
+/// An `f32` at most `x` (finite `x` below 2^100 in size, as the search's points are): `x`
+/// rounded, less at least one unit in its last place, in arithmetic without branches (whether
+/// rounding went up is a coin toss the processor would mispredict).
 #[inline]
 fn down(x: f64) -> f32 {
     let y = x as f32;
-    if f64::from(y) > x {
-        y.next_down()
-    } else {
-        y
-    }
+    y - widening(y)
 }
 
-/// The smallest `f32` at least `x`.
+/// An `f32` at least `x` (as [`down`]).
 #[inline]
 fn up(x: f64) -> f32 {
     let y = x as f32;
-    if f64::from(y) < x {
-        y.next_up()
-    } else {
-        y
-    }
+    y + widening(y)
+}
+
+/// At least one unit in the last place of `y` (2^-23 of it, or the least normal `f32`, whichever
+/// is more): `x` rounded to `y` is within half of that, so `y` less or plus it is past `x`.
+#[inline]
+fn widening(y: f32) -> f32 {
+    y.abs() * f32::EPSILON + f32::MIN_POSITIVE
 }
 
 /// Whether two closed boxes share a point.
@@ -500,6 +501,31 @@ mod tests {
             all.len()
         );
         assert_eq!(found, all);
+    }
+
+    /// Rounded outward, a coordinate stays within its box's ends, which are a few units in the
+    /// last place of an `f32` from it: random values of every size and sign below 2^100, values
+    /// an `f32` holds exactly, halfway between two, zero and the smallest ones.
+    #[test]
+    fn ends_are_outside_and_near() {
+        let mut bits = crate::geometry::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut values = vec![0.0, -0.0, 1e-300, -1e-300, 1e-40, 0.1, 2f64.powi(99)];
+        values.extend([1.0f32, 3.5, 1e-30].map(f64::from));
+        // Halfway between 1 and the next f32: rounds to even, down.
+        values.push(1.0 + f64::from(f32::EPSILON) / 2.0);
+        for _ in 0..100_000 {
+            let r = bits();
+            let mantissa = (r >> 11) as f64 / (1u64 << 53) as f64;
+            let exponent = (r % 200) as i32 - 100;
+            let sign = if r & (1 << 8) == 0 { 1.0 } else { -1.0 };
+            values.push(sign * mantissa * 2f64.powi(exponent));
+        }
+        for x in values {
+            let (lo, hi) = (down(x), up(x));
+            assert!(f64::from(lo) <= x && x <= f64::from(hi), "{x}: {lo} {hi}");
+            let near = |e: f32| (e - x as f32).abs() <= 3.0 * widening(x as f32);
+            assert!(near(lo) && near(hi), "{x}: {lo} {hi}");
+        }
     }
 
     /// `f64` boxes that touch at one coordinate still touch after rounding to `f32`: 0.1 is not an
