@@ -488,13 +488,8 @@ mod tests {
     /// meet (by the narrow phase, pair by pair).
     #[test]
     fn no_two_faces_of_a_flat_run_meet() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move |n: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed % n
-        };
+        let mut bits = crate::geometry::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut next = move |n: u64| bits() % n;
         let (mut flat_runs, mut tried) = (0, 0);
         for _ in 0..3000 {
             let n = 4;
@@ -611,13 +606,8 @@ mod tests {
     /// that many of them are pinched): no set called flat has two faces that meet.
     #[test]
     fn no_two_faces_of_a_flat_set_meet() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move |n: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed % n
-        };
+        let mut bits = crate::geometry::xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut next = move |n: u64| bits() % n;
         let (mut flat_sets, mut pinched, mut tried) = (0, 0, 0);
         for _ in 0..4000 {
             let n = 5;
