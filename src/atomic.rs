@@ -3,6 +3,11 @@
 //! target, synced to the disk and renamed over it when complete. A crash, a full disk, a power cut
 //! or an error half-way leaves the previous file untouched or the whole new one, and no temporary
 //! file behind (dropping an uncommitted [`AtomicFile`] removes it).
+//!
+//! A target that is not a regular file or a folder (`/dev/null`, `/dev/stdout`, a named pipe, a
+//! socket) is written in place instead: a rename would put a regular file where the device or
+//! pipe was (for root, `--csv /dev/null` would replace the system's `/dev/null`), and such a
+//! target has no old contents to keep.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
@@ -12,15 +17,21 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// A file being written under a temporary name; [`AtomicFile::commit`] puts it in place.
 pub struct AtomicFile {
     writer: Option<BufWriter<File>>,
-    temporary: PathBuf,
+    /// `None`: the target is a device, a pipe or a socket, written in place.
+    temporary: Option<PathBuf>,
     path: PathBuf,
 }
 
 impl AtomicFile {
     /// Starts writing `path` (its folder must exist).
     pub fn create(path: &Path) -> io::Result<AtomicFile> {
-        let temporary = temporary_name(path);
-        let file = File::create(&temporary)?;
+        let special = std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+        let (file, temporary) = if special {
+            (std::fs::OpenOptions::new().write(true).open(path)?, None)
+        } else {
+            let temporary = temporary_name(path);
+            (File::create(&temporary)?, Some(temporary))
+        };
         Ok(AtomicFile {
             writer: Some(BufWriter::new(file)),
             temporary,
@@ -29,13 +40,16 @@ impl AtomicFile {
     }
 
     /// Flushes the data to the disk and renames the temporary file over the target, so even a
-    /// power cut leaves the old file or the whole new one.
+    /// power cut leaves the old file or the whole new one (a device or a pipe: flushes into it).
     pub fn commit(mut self) -> io::Result<()> {
         let writer = self.writer.take().expect("commit is called once");
         let file = writer.into_inner().map_err(|e| e.into_error())?;
+        let Some(temporary) = &self.temporary else {
+            return Ok(());
+        };
         file.sync_all()?;
         drop(file);
-        std::fs::rename(&self.temporary, &self.path)
+        std::fs::rename(temporary, &self.path)
         // On error, `drop` removes the temporary file.
     }
 
@@ -60,7 +74,9 @@ impl Drop for AtomicFile {
     fn drop(&mut self) {
         self.writer = None;
         // After a successful rename the temporary name no longer exists; the error is ignored.
-        let _ = std::fs::remove_file(&self.temporary);
+        if let Some(temporary) = &self.temporary {
+            let _ = std::fs::remove_file(temporary);
+        }
     }
 }
 
@@ -95,6 +111,31 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "old", "not yet");
         file.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// A named pipe stays a pipe and gets the bytes (as `/dev/null` or `/dev/stdout` would: a
+    /// rename put a regular file in their place, for root even over the system's `/dev/null`).
+    #[cfg(unix)]
+    #[test]
+    fn a_pipe_is_written_in_place_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let pipe = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&pipe).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("no mkfifo here: skipped");
+            return;
+        }
+        let reader = {
+            let pipe = pipe.clone();
+            std::thread::spawn(move || std::fs::read(pipe))
+        };
+        let mut file = AtomicFile::create(&pipe).unwrap();
+        file.write_all(b"path,faces\n").unwrap();
+        file.commit().unwrap();
+        assert!(std::fs::metadata(&pipe).unwrap().file_type().is_fifo());
+        assert_eq!(reader.join().unwrap().unwrap(), b"path,faces\n");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
