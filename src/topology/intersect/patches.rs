@@ -227,7 +227,8 @@ impl<'a> Patches<'a> {
         true
     }
 
-    /// Ends the path's points from `from` on as a loop; false past [`MAX_LOOPS`].
+    /// Ends the path's points from `from` on as a loop; false past [`MAX_LOOPS`] loops, or for a
+    /// loop of fewer than three points (which no border of faces on manifold edges makes).
     fn close(&mut self, from: usize, axes: Axes) -> bool {
         if self.loops.len() == MAX_LOOPS || self.path.len() - from < 3 {
             return false;
