@@ -73,3 +73,29 @@ fn radix_sort_high(keys: &mut Vec<u64>) {
         std::mem::swap(keys, &mut other);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The radix sort is a stable sort by the code in the high bits: random codes with many ties
+    /// (few distinct ones per digit), the index below, as `order` makes them.
+    #[test]
+    fn radix_sort_is_stable_by_code() {
+        let mut bits = crate::geometry::xorshift(0x51ed_2701_9b3a_c4e5);
+        for size in [0, 1, 7, 1000, 70_000] {
+            let mut keys: Vec<u64> = (0..size as u64)
+                .map(|i| {
+                    let r = bits();
+                    // Each ten-bit digit takes one of four values, so ties are common.
+                    let code = (0..3).fold(0u64, |c, d| c | ((r >> (8 * d)) & 3) << (10 * d + 3));
+                    code << 32 | i
+                })
+                .collect();
+            let mut expected = keys.clone();
+            expected.sort_by_key(|k| k >> 32);
+            radix_sort_high(&mut keys);
+            assert_eq!(keys, expected, "{size} keys");
+        }
+    }
+}
