@@ -67,7 +67,8 @@ pub(super) struct Patches<'a> {
     pub(super) table: &'a CornerTable,
     /// The walk's place of every table face (`u32::MAX`: not in the walk).
     pub(super) place: &'a [u32],
-    /// Per vertex, bit `k`: its star is flat dropping coordinate `k` ([`super::stars::Stars::along`]).
+    /// Per vertex, bit `k`: its star is flat dropping coordinate `k`
+    /// ([`super::stars::Stars::along`]).
     pub(super) along: &'a [u8],
     /// Border edges `(from, to)`.
     edges: Vec<(u32, u32)>,
