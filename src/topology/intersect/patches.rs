@@ -564,6 +564,13 @@ mod tests {
             .collect()
     }
 
+    /// The faces of two 2 x 2 blocks of squares of a [`grid`] of 6 that meet at vertex (3, 3).
+    fn two_blocks() -> Vec<u32> {
+        let block =
+            |i: u32, j: u32, lo: u32| (lo..lo + 2).contains(&i) && (lo..lo + 2).contains(&j);
+        squares(6, |i, j| block(i, j, 1) || block(i, j, 3))
+    }
+
     /// Two blocks of squares meeting at one corner (a pinch: the vertex starts two border edges),
     /// and a ring of squares around a hole whose ends meet at one of the hole's corners: both are
     /// flat, turned over too. They were turned down before pinches were taken.
@@ -572,9 +579,7 @@ mod tests {
         let bumpy = |i: u32, j: u32| f64::from((i * 7 + j * 3) % 5);
         let (points, triangles) = grid(6, bumpy, |_, _| false);
         let turned: Vec<[u32; 3]> = triangles.iter().map(|&[a, b, c]| [a, c, b]).collect();
-        let corners = squares(6, |i, j| {
-            (1..3).contains(&i) && (1..3).contains(&j) || (3..5).contains(&i) && (3..5).contains(&j)
-        });
+        let corners = two_blocks();
         let ring = squares(6, |i, j| {
             let around = (1..4).contains(&i) && (1..4).contains(&j) && (i, j) != (2, 2);
             around && (i, j) != (1, 3)
@@ -590,9 +595,7 @@ mod tests {
     #[test]
     fn a_pinch_needs_a_flat_star() {
         let (mut points, mut triangles) = grid(6, |_, _| 0.0, |_, _| false);
-        let corners = squares(6, |i, j| {
-            (1..3).contains(&i) && (1..3).contains(&j) || (3..5).contains(&i) && (3..5).contains(&j)
-        });
+        let corners = two_blocks();
         assert_eq!(part_flat(&points, &triangles, &corners), (true, true));
         // Face 1 of square (3, 2) is (3, 2), (4, 3), (3, 3): its corner on the pinch (3, 3)
         // becomes a vertex of its own.

@@ -54,7 +54,9 @@ pub(super) struct Stars {
     /// Per face, its turn bits ([`super::patches::turn_bits`]).
     pub(super) turns: Vec<u8>,
     /// Per vertex of the table, bit `k`: its star is flat dropping coordinate `k` (the pinches of
-    /// a flat patch need it along the patch's axis, [`super::patches`]).
+    /// a flat patch need it along the patch's axis, [`super::patches`]). `flat` is set where this
+    /// is not zero and where the star is flat only along its own axis; it stays a bit vector, an
+    /// eighth of this, for the tree build's three lookups a face.
     pub(super) along: Vec<u8>,
 }
 
