@@ -305,8 +305,26 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             "face" => {
                 let roles = roles(def);
                 let fixed = FixedFace::of(def).filter(|_| body.encoding != Encoding::Ascii);
+                let quick = QuickAscii::of(def, &roles, &[Role::Indices])
+                    .filter(|_| body.encoding == Encoding::Ascii && vertices_read_before_faces);
                 let mut i = 0;
                 while i < def.count {
+                    if let Some(q) = quick {
+                        let limit = cx.limits.max_triangles;
+                        i += body.triangles(
+                            q,
+                            def.count - i,
+                            n_vertices,
+                            limit,
+                            &mut mesh.triangles,
+                        );
+                        if mesh.triangles.len() as u64 > limit {
+                            return Err(over_limit(cx));
+                        }
+                        if i == def.count {
+                            break;
+                        }
+                    }
                     // Binary triangles (most faces) go straight into the mesh, as `triangulate`
                     // would put them (and the tally ignores triangles), as do ASCII ones below;
                     // any other face, or one with an index out of range, is read below.
@@ -700,6 +718,74 @@ impl FixedFace {
     }
 }
 
+/// An ASCII element whose lines the quick reader takes: its first properties are the ones read
+/// (`x y z` scalars of a vertex, or a face's index list), then only scalars (`more` of them).
+/// Other layouts are read line by line by [`ascii_record`].
+#[derive(Clone, Copy)]
+struct QuickAscii {
+    more: usize,
+}
+
+impl QuickAscii {
+    fn of(def: &ElementDef, roles: &[Role], lead: &[Role]) -> Option<QuickAscii> {
+        let scalars = def.properties.values().skip(lead.len());
+        let rest_scalars = scalars
+            .clone()
+            .all(|p| matches!(p.data_type, PropertyType::Scalar(_)));
+        (roles.starts_with(lead) && rest_scalars).then(|| QuickAscii {
+            more: roles.len() - lead.len(),
+        })
+    }
+
+    /// The `N` numbers that start the line at the start of `rest`, read by `leading`, and the
+    /// length of the line with its line end; `None`, having read nothing, for a line this does not
+    /// take as it is (blank, short, a token that is not a number, a byte that is not ASCII):
+    /// [`ascii_record`] then reads it and says what is wrong. What it takes, it reads as
+    /// [`next_line`] and [`ascii_record`] would: tokens between blanks, extra tokens ignored.
+    #[inline]
+    fn numbers<T: Copy + Default, const N: usize>(
+        self,
+        rest: &[u8],
+        leading: impl Fn(&[u8]) -> Option<(T, usize)>,
+    ) -> Option<([T; N], usize)> {
+        // ASCII whitespace that is not a line end (`is_ascii_whitespace` without `\n`, `\r`).
+        let blank = |b: u8| matches!(b, b' ' | b'\t' | 0x0c);
+        let mut out = [T::default(); N];
+        let mut at = 0;
+        for x in &mut out {
+            while rest.get(at).is_some_and(|&b| blank(b)) {
+                at += 1;
+            }
+            let (value, n) = leading(&rest[at..])?;
+            at += n;
+            match rest.get(at) {
+                None | Some(b'\n' | b'\r') => {}
+                Some(&b) if blank(b) => {}
+                Some(_) => return None,
+            }
+            *x = value;
+        }
+        // The other scalars' tokens (at least `more`) and anything after them, to the line end.
+        let mut tokens = 0;
+        let mut in_token = false;
+        let end = loop {
+            match rest.get(at) {
+                None => break at,
+                Some(b'\n') => break at + 1,
+                Some(b'\r') => break at + 1 + usize::from(rest.get(at + 1) == Some(&b'\n')),
+                Some(&b) if b >= 0x80 => return None,
+                Some(&b) => {
+                    let starts = !blank(b) && !in_token;
+                    tokens += usize::from(starts);
+                    in_token = !blank(b);
+                }
+            }
+            at += 1;
+        };
+        (tokens >= self.more).then_some((out, end))
+    }
+}
+
 fn cut(token: &[u8]) -> String {
     String::from_utf8_lossy(token).chars().take(40).collect()
 }
@@ -824,8 +910,17 @@ impl<'a> Body<'a> {
     fn vertices(&mut self, def: &ElementDef, out: &mut Vec<[f64; 3]>) -> Result<(), ReadError> {
         if self.encoding == Encoding::Ascii {
             let roles = roles(def);
+            let axes = [Role::Axis(0), Role::Axis(1), Role::Axis(2)];
+            let quick = QuickAscii::of(def, &roles, &axes);
             let mut indices = Vec::new();
             for i in 0..def.count {
+                if let Some((xyz, n)) = quick.and_then(|q| q.numbers(self.rest, text::leading_f64))
+                {
+                    self.rest = &self.rest[n..];
+                    self.line += 1;
+                    out.push(xyz);
+                    continue;
+                }
                 let mut xyz = [0.0; 3];
                 self.ascii(def, i, &roles, &mut xyz, &mut indices)?;
                 out.push(xyz);
@@ -892,6 +987,35 @@ impl<'a> Body<'a> {
         let signed = f.signed.iter().map(|&k| k as i64);
         indices.extend(signed.chain(f.unsigned.iter().map(|&k| k as i64)));
         Ok(())
+    }
+
+    /// [`FixedFace::triangles`] for ASCII lines: reads up to `count` face lines that
+    /// [`QuickAscii`] takes straight into `out` while they are triangles whose indices are below
+    /// `n_vertices`, stopping too once `out` holds more than `limit` triangles; returns how many
+    /// it read.
+    fn triangles(
+        &mut self,
+        quick: QuickAscii,
+        count: usize,
+        n_vertices: usize,
+        limit: u64,
+        out: &mut Vec<[u32; 3]>,
+    ) -> usize {
+        let mut read = 0;
+        while read < count && out.len() as u64 <= limit {
+            let Some(([n, a, b, c], len)) = quick.numbers(self.rest, text::leading_i64) else {
+                break;
+            };
+            let t = [a, b, c];
+            if n != 3 || t.iter().any(|&k| k < 0 || k as usize >= n_vertices) {
+                break;
+            }
+            out.push(t.map(|k| k as u32));
+            self.rest = &self.rest[len..];
+            self.line += 1;
+            read += 1;
+        }
+        read
     }
 
     /// Reads past every record of `def`.
@@ -991,6 +1115,112 @@ mod tests {
         assert_eq!(out, vec![[0, 1, 2], [2, 1, 3], [4, 5, 6]]);
         assert_eq!(add_strip([0, 1, 9].into_iter(), 8, &mut out), Err(9));
         assert_eq!(add_strip([0, -2].into_iter(), 8, &mut out), Err(-2));
+    }
+
+    /// The quick reader of ASCII lines reads what the line-by-line reader reads, wherever it
+    /// takes a line: the same line end, the same numbers. Random lines of numbers, odd tokens,
+    /// blanks and line ends, for vertices and faces with 0-2 more scalars after what is read.
+    #[test]
+    fn quick_ascii_lines_read_as_the_line_reader() {
+        const TOKENS: [&str; 16] = [
+            "1",
+            "-2.5",
+            "3",
+            "+4",
+            "nan",
+            "1e5",
+            "0x1",
+            "-0",
+            "é",
+            "1.0e",
+            "2,5",
+            "-",
+            "7",
+            "\x0b",
+            "99999999999999999999",
+            "inf",
+        ];
+        const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", " \t"];
+        const ENDS: [&str; 4] = ["\n", "\r\n", "\r", ""];
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut pick = |n: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % n as u64) as usize
+        };
+        let mut taken = [0; 2];
+        for more in 0..3 {
+            let extra: String = (0..more).map(|k| format!("property int e{k}\n")).collect();
+            let text = format!(
+                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                 property float z\n{extra}element face 1\n\
+                 property list uchar int vertex_indices\n{extra}end_header\n"
+            );
+            let (_, header, _) = header(text.as_bytes()).unwrap();
+            for (e, def) in header.elements.values().enumerate() {
+                let roles = roles(def);
+                let lead = [
+                    [Role::Axis(0), Role::Axis(1), Role::Axis(2)].as_slice(),
+                    &[Role::Indices],
+                ];
+                let quick = QuickAscii::of(def, &roles, lead[e]).expect("a quick layout");
+                for _ in 0..20_000 {
+                    let mut line = String::new();
+                    if pick(4) == 0 {
+                        line.push_str(GAPS[pick(GAPS.len())]);
+                    }
+                    for k in 0..pick(8) {
+                        if k > 0 || pick(3) == 0 {
+                            line.push_str(GAPS[pick(GAPS.len())]);
+                        }
+                        // Plain small numbers most of the time, so that many lines are taken.
+                        match pick(3) {
+                            // A face's list length is 3 for half of the lines.
+                            _ if k == 0 && e == 1 && pick(2) == 0 => line.push('3'),
+                            0 => line.push_str(TOKENS[pick(TOKENS.len())]),
+                            _ => line.push_str(&pick(5).to_string()),
+                        }
+                    }
+                    line.push_str(ENDS[pick(ENDS.len())]);
+                    line.push_str("8 9 1\n");
+                    let bytes = line.as_bytes();
+                    let (mut xyz, mut indices) = ([0.0; 3], Vec::new());
+                    let (mut rest, mut line_no) = (bytes, 0);
+                    let by_line = next_line(&mut rest, &mut line_no)
+                        .filter(|_| line_no == 1)
+                        .filter(|l| l.is_ascii() || std::str::from_utf8(l).is_ok())
+                        .and_then(|l| ascii_record(l, def, &roles, &mut xyz, &mut indices).ok())
+                        .map(|()| bytes.len() - rest.len());
+                    let (len, numbers) = if e == 0 {
+                        let Some((q, len)) = quick.numbers::<f64, 3>(bytes, text::leading_f64)
+                        else {
+                            continue;
+                        };
+                        (len, q.map(f64::to_bits).to_vec())
+                    } else {
+                        let Some((q, len)) = quick.numbers::<i64, 4>(bytes, text::leading_i64)
+                        else {
+                            continue;
+                        };
+                        if q[0] != 3 {
+                            continue;
+                        }
+                        (len, q[1..].iter().map(|&i| i as u64).collect())
+                    };
+                    taken[e] += 1;
+                    let line = line.escape_debug();
+                    assert_eq!(by_line, Some(len), "`{line}`");
+                    let expected: Vec<u64> = if e == 0 {
+                        xyz.map(f64::to_bits).to_vec()
+                    } else {
+                        indices.iter().map(|&i| i as u64).collect()
+                    };
+                    assert_eq!(numbers, expected, "`{line}`");
+                }
+            }
+        }
+        assert!(taken.iter().all(|&n| n > 3_000), "lines taken: {taken:?}");
     }
 
     const SQUARE: &str = "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\n\
