@@ -290,15 +290,15 @@ fn parse_with(
         } else if !joined.is_empty() {
             joined.push_str(line);
             let statement = std::mem::take(&mut joined);
-            p.statement(&statement, joined_line)?;
+            p.statement(&statement, statement.as_bytes(), joined_line)?;
         } else {
-            p.statement(line, line_no)?;
+            p.statement(line, &text.as_bytes()[start..], line_no)?;
         }
         start = end + 1;
     }
     if !joined.is_empty() {
         let statement = std::mem::take(&mut joined);
-        p.statement(&statement, joined_line)?;
+        p.statement(&statement, statement.as_bytes(), joined_line)?;
     }
     p.finish(notes)
 }
@@ -406,13 +406,16 @@ impl Parser<'_> {
         });
     }
 
-    fn statement(&mut self, line: &str, line_no: u64) -> Result<(), ReadError> {
+    /// Reads one statement, `line`; `wide` is the same bytes and maybe more after them (the rest
+    /// of the file), which lets numbers be read eight bytes at a time up to the line's end.
+    fn statement(&mut self, line: &str, wide: &[u8], line_no: u64) -> Result<(), ReadError> {
         // Most lines of large files are `v x y z` and `f a b c`.
         if let [keyword @ (b'v' | b'f'), b' ' | b'\t', rest @ ..] = line.as_bytes() {
             if self.detail.is_none() {
+                let wide = &wide[2..];
                 let done = match keyword {
-                    b'v' => self.vertex_quickly(rest)?,
-                    _ => self.face_quickly(rest, line_no)?,
+                    b'v' => self.vertex_quickly(rest, wide)?,
+                    _ => self.face_quickly(rest, wide, line_no)?,
                 };
                 if done {
                     return Ok(());
@@ -545,7 +548,7 @@ impl Parser<'_> {
     /// returns false, having kept nothing, at anything else (the words are then read again by
     /// `face`, which says what is wrong). Errors of the indices themselves are the same either way.
     #[inline]
-    fn face_quickly(&mut self, rest: &[u8], line_no: u64) -> Result<bool, ReadError> {
+    fn face_quickly(&mut self, rest: &[u8], wide: &[u8], line_no: u64) -> Result<bool, ReadError> {
         self.poly.clear();
         let mut forward = false;
         let mut at = 0;
@@ -557,10 +560,14 @@ impl Parser<'_> {
                 None | Some(b'#') => break,
                 Some(_) => {}
             }
-            let Some((i, end)) = text::leading_i64(&rest[at..]) else {
+            // (A number ends at a blank, so within the line: `wide` only adds bytes after it.)
+            let Some((i, end)) = text::leading_i64(&wide[at..]) else {
                 return Ok(false);
             };
             at += end;
+            if at > rest.len() {
+                return Ok(false);
+            }
             match rest.get(at) {
                 None => {}
                 Some(b) if b.is_ascii_whitespace() => {}
@@ -651,18 +658,20 @@ impl Parser<'_> {
     /// true when its first three words are numbers, read in one pass; false, having kept
     /// nothing, at anything else (`vertex` then reads the words again and says what is wrong).
     #[inline]
-    fn vertex_quickly(&mut self, rest: &[u8]) -> Result<bool, ReadError> {
+    fn vertex_quickly(&mut self, rest: &[u8], wide: &[u8]) -> Result<bool, ReadError> {
         let mut p = [0.0f64; 3];
         let mut at = 0;
         for c in &mut p {
             while rest.get(at).is_some_and(u8::is_ascii_whitespace) {
                 at += 1;
             }
-            let Ok((x, n)) = fast_float2::parse_partial::<f64, _>(&rest[at.min(rest.len())..])
-            else {
+            let Some((x, n)) = text::leading_f64(&wide[at.min(rest.len())..]) else {
                 return Ok(false);
             };
             at += n;
+            if at > rest.len() {
+                return Ok(false);
+            }
             if rest.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
                 return Ok(false);
             }
