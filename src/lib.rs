@@ -17,6 +17,7 @@ pub mod json;
 pub mod judge;
 pub mod junit;
 pub mod mesh;
+pub mod pages;
 pub mod picture;
 pub mod repair;
 pub mod report;

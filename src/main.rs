@@ -25,6 +25,10 @@ use meshvet::scan;
 use meshvet::shard;
 use meshvet::walk::{self, Source};
 
+/// Large blocks on huge pages: far fewer page faults for a big mesh's arrays.
+#[global_allocator]
+static ALLOCATOR: meshvet::pages::HugePages = meshvet::pages::HugePages;
+
 /// The command was wrong (bad flag, config or path).
 const USAGE: u8 = 2;
 

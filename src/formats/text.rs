@@ -702,7 +702,7 @@ mod tests {
                 }
             };
             digits(&mut seed, &mut text);
-            if random(&mut seed) % 4 != 0 {
+            if !random(&mut seed).is_multiple_of(4) {
                 text.push('.');
                 digits(&mut seed, &mut text);
             }
