@@ -9,9 +9,10 @@
 //! file with a short binary preamble before its text.
 //!
 //! Numbers are parsed from bytes, without UTF-8 validation, and accept exactly what the standard
-//! library's `str::parse` accepts, with the same value: floats through `fast-float2` (an exact
+//! library's `str::parse` accepts, with the same value: plain decimals (15 digits at most, an
+//! exponent within 10^22) by Clinger's fast path, other floats through `fast-float2` (an exact
 //! parser: the correctly rounded `f64`, `inf`, `nan` and `infinity` in any case, with a sign),
-//! integers by the loop below (an optional sign, then ASCII digits, no overflow).
+//! integers eight digits at a time (an optional sign, then ASCII digits, no overflow).
 
 use super::ReadError;
 
