@@ -309,40 +309,24 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
                     .filter(|_| body.encoding == Encoding::Ascii && vertices_read_before_faces);
                 let mut i = 0;
                 while i < def.count {
-                    if let Some(q) = quick {
-                        let limit = cx.limits.max_triangles;
-                        i += body.triangles(
-                            q,
-                            def.count - i,
-                            n_vertices,
-                            limit,
-                            &mut mesh.triangles,
-                        );
-                        if mesh.triangles.len() as u64 > limit {
-                            return Err(over_limit(cx));
+                    // Triangles (most faces) go straight into the mesh, as `triangulate` would
+                    // put them (and the tally ignores triangles): binary records in bulk, ASCII
+                    // lines the quick reader takes. Any other face, or one with an index out of
+                    // range, is read below.
+                    let (limit, left, out) =
+                        (cx.limits.max_triangles, def.count - i, &mut mesh.triangles);
+                    i += match (quick, &fixed) {
+                        (Some(q), _) => body.triangles(q, left, n_vertices, limit, out),
+                        (None, Some(f)) if vertices_read_before_faces => {
+                            f.triangles(&mut body, left, n_vertices, limit, out)
                         }
-                        if i == def.count {
-                            break;
-                        }
+                        _ => 0,
+                    };
+                    if mesh.triangles.len() as u64 > limit {
+                        return Err(over_limit(cx));
                     }
-                    // Binary triangles (most faces) go straight into the mesh, as `triangulate`
-                    // would put them (and the tally ignores triangles), as do ASCII ones below;
-                    // any other face, or one with an index out of range, is read below.
-                    if let Some(f) = fixed.as_ref().filter(|_| vertices_read_before_faces) {
-                        let limit = cx.limits.max_triangles;
-                        i += f.triangles(
-                            &mut body,
-                            def.count - i,
-                            n_vertices,
-                            limit,
-                            &mut mesh.triangles,
-                        );
-                        if mesh.triangles.len() as u64 > limit {
-                            return Err(over_limit(cx));
-                        }
-                        if i == def.count {
-                            break;
-                        }
+                    if i == def.count {
+                        break;
                     }
                     body.indices(def, &roles, fixed.as_ref(), i, &mut indices)?;
                     poly.clear();
@@ -728,9 +712,7 @@ struct QuickAscii {
 
 impl QuickAscii {
     fn of(def: &ElementDef, roles: &[Role], lead: &[Role]) -> Option<QuickAscii> {
-        let scalars = def.properties.values().skip(lead.len());
-        let rest_scalars = scalars
-            .clone()
+        let rest_scalars = (def.properties.values().skip(lead.len()))
             .all(|p| matches!(p.data_type, PropertyType::Scalar(_)));
         (roles.starts_with(lead) && rest_scalars).then(|| QuickAscii {
             more: roles.len() - lead.len(),
