@@ -346,19 +346,17 @@ fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
         Some(&chunk) => u64::from_le_bytes(chunk),
         None => (rest.iter().enumerate()).fold(0, |c, (k, &b)| c | u64::from(b) << (8 * k)),
     };
-    {
-        let digits = chunk.wrapping_sub(0x3030_3030_3030_3030);
-        // Bit 7 of a byte is set where the byte is not a digit: its value less `'0'` is over 9
-        // (adding 0x76 reaches bit 7) or negative (wrapped: bit 7 already set). A borrow or a
-        // carry only ever crosses from such a byte into the bytes after it.
-        let odd = (digits.wrapping_add(0x7676_7676_7676_7676) | digits) & 0x8080_8080_8080_8080;
-        if odd != 0 {
-            let len = odd.trailing_zeros() as usize / 8;
-            if len == 0 {
-                return None;
-            }
-            return Some((eight_digits(digits << (64 - 8 * len)), at + len));
+    let digits = chunk.wrapping_sub(0x3030_3030_3030_3030);
+    // Bit 7 of a byte is set where the byte is not a digit: its value less `'0'` is over 9
+    // (adding 0x76 reaches bit 7) or negative (wrapped: bit 7 already set). A borrow or a
+    // carry only ever crosses from such a byte into the bytes after it.
+    let odd = (digits.wrapping_add(0x7676_7676_7676_7676) | digits) & 0x8080_8080_8080_8080;
+    if odd != 0 {
+        let len = odd.trailing_zeros() as usize / 8;
+        if len == 0 {
+            return None;
         }
+        return Some((eight_digits(digits << (64 - 8 * len)), at + len));
     }
     let mut value = 0u64;
     let mut end = at;
@@ -416,15 +414,7 @@ pub(crate) fn leading_f64(bytes: &[u8]) -> Option<(f64, usize)> {
 /// gives (Clinger's fast path, which `fast-float2` takes too, after more general work).
 #[inline(always)]
 fn leading_decimal(bytes: &[u8]) -> Option<(f64, usize)> {
-    const TENS: [u64; 16] = {
-        let mut tens = [1; 16];
-        let mut k = 1;
-        while k < 16 {
-            tens[k] = tens[k - 1] * 10;
-            k += 1;
-        }
-        tens
-    };
+    /// The powers of ten an `f64` holds exactly.
     const POWERS: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
         1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
@@ -437,7 +427,12 @@ fn leading_decimal(bytes: &[u8]) -> Option<(f64, usize)> {
         if end - at - 1 > 15 {
             return None;
         }
-        (whole * TENS[scale] + fraction, scale as i64, end)
+        // (10^scale, at most 10^15, is exact as an `f64` and as an `i64`.)
+        (
+            whole * POWERS[scale] as i64 as u64 + fraction,
+            scale as i64,
+            end,
+        )
     } else if whole_end - at > 15 {
         return None;
     } else {
