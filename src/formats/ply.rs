@@ -661,6 +661,11 @@ impl FixedFace {
         out: &mut Vec<[u32; 3]>,
     ) -> usize {
         let big = body.big();
+        if let (false, ScalarType::Char | ScalarType::UChar, ScalarType::Int | ScalarType::UInt) =
+            (big, &self.count, &self.item)
+        {
+            return self.little_triangles(body, count, n_vertices, limit, out);
+        }
         let mut read = 0;
         while read < count && out.len() as u64 <= limit {
             let Some((t, rest)) = self.triangle(body.rest, big) else {
@@ -673,6 +678,39 @@ impl FixedFace {
             body.rest = rest;
             read += 1;
         }
+        read
+    }
+
+    /// [`FixedFace::triangles`] for the layout nearly every exporter writes, a one-byte length
+    /// and 4-byte little-endian indices (`list uchar int`), decoded without asking the types for
+    /// each number.
+    fn little_triangles(
+        &self,
+        body: &mut Body<'_>,
+        count: usize,
+        n_vertices: usize,
+        limit: u64,
+        out: &mut Vec<[u32; 3]>,
+    ) -> usize {
+        let (at, size) = (self.before, self.before + 13 + self.after);
+        // Reads while `out` holds at most `limit` triangles, as the general loop does.
+        let room = limit.saturating_add(1).saturating_sub(out.len() as u64);
+        let room = usize::try_from(room).unwrap_or(usize::MAX);
+        let records = body.rest.chunks_exact(size).take(count.min(room));
+        out.reserve(records.len());
+        // An `int` index below 0 reads as a `u32` of 2^31 or more: outside this bound.
+        let bound = match self.item {
+            ScalarType::Int => n_vertices.min(1 << 31),
+            _ => n_vertices,
+        };
+        let before = out.len();
+        out.extend(records.map_while(|r| {
+            let i = |k: usize| u32::from_le_bytes([r[k], r[k + 1], r[k + 2], r[k + 3]]);
+            let t = [i(at + 1), i(at + 5), i(at + 9)];
+            (r[at] == 3 && t.iter().all(|&k| (k as usize) < bound)).then_some(t)
+        }));
+        let read = out.len() - before;
+        body.rest = &body.rest[read * size..];
         read
     }
 
@@ -1324,6 +1362,27 @@ mod tests {
             e.contains("PLY face 1: List length cannot be negative"),
             "{e}"
         );
+    }
+
+    /// The bulk reader of `list uchar int` stops where the general reader would: at a negative
+    /// index (a `u32` of 2^32 - 1 when read as one), and once the triangles pass the limit.
+    #[test]
+    fn bulk_triangles_stop_at_negative_indices_and_at_the_limit() {
+        let e = parse(&bulk("uchar", &[&[0, 1, 2], &[1, -1, 3]]), &cx())
+            .unwrap_err()
+            .0;
+        assert!(
+            e.starts_with("PLY face 1: vertex index -1 is out of range"),
+            "{e}"
+        );
+        // A square (two triangles), then three triangles: five triangles from four faces.
+        let five = bulk("uchar", &[&[0, 1, 2, 3], &[0, 1, 2], &[1, 2, 3], &[0, 2, 3]]);
+        let mut cx = cx();
+        cx.limits.max_triangles = 5;
+        assert_eq!(parse(&five, &cx).unwrap().triangles.len(), 5);
+        cx.limits.max_triangles = 4;
+        let e = parse(&five, &cx).unwrap_err().0;
+        assert!(e.contains("more than 4 triangles"), "{e}");
     }
 
     #[test]
