@@ -571,42 +571,33 @@ impl Parser<'_> {
     /// either way.
     #[inline]
     fn face_line(&mut self, rest: &[u8], line_no: u64) -> Result<Option<usize>, ReadError> {
+        // Most faces are triangles of vertices read already: pushed as they are (which is what
+        // `corner` and `split_face` would do with them; such indices can never be the file's
+        // largest out-of-range one that `corner` tracks).
+        let known = (self.mesh.positions.len() as i64).min(u32::MAX as i64);
+        let (mut t, mut at) = ([0u32; 3], 2);
+        let three = t.iter_mut().all(|k| match corner_word(rest, &mut at) {
+            Word::Index(i) if (1..=known).contains(&i) => {
+                *k = (i - 1) as u32;
+                true
+            }
+            _ => false,
+        });
+        if three && matches!(corner_word(rest, &mut at), Word::End) {
+            self.mesh.triangles.push(t);
+            if self.mesh.triangles.len() as u64 > self.cx.limits.max_triangles {
+                return Err(over_limit("triangles", self.cx));
+            }
+            return Ok(Some(at));
+        }
         self.poly.clear();
-        let mut forward = false;
-        let mut at = 2;
+        let (mut forward, mut at) = (false, 2);
         loop {
-            while rest.get(at).copied().is_some_and(blank) {
-                at += 1;
+            match corner_word(rest, &mut at) {
+                Word::Index(i) => self.corner(i, &mut forward, line_no)?,
+                Word::End => break,
+                Word::Other => return Ok(None),
             }
-            match rest.get(at) {
-                None => break,
-                Some(b'\n') => {
-                    at += 1;
-                    break;
-                }
-                Some(b'#') => return Ok(None),
-                Some(_) => {}
-            }
-            // (A number ends at a blank or a line feed, so within the line.)
-            let Some((i, end)) = text::leading_i64(&rest[at..]) else {
-                return Ok(None);
-            };
-            at += end;
-            match rest.get(at) {
-                None => {}
-                Some(b) if b.is_ascii_whitespace() => {}
-                Some(b'/') => {
-                    while let Some(&b) = rest.get(at).filter(|b| !b.is_ascii_whitespace()) {
-                        // (A `\` may end the line: the statement goes on on the next one.)
-                        if b == b'\\' {
-                            return Ok(None);
-                        }
-                        at += 1;
-                    }
-                }
-                Some(_) => return Ok(None),
-            }
-            self.corner(i, &mut forward, line_no)?;
         }
         self.split_face(forward, line_no)?;
         Ok(Some(at))
@@ -797,6 +788,54 @@ impl Parser<'_> {
             detail: self.detail,
         })
     }
+}
+
+/// A word of an `f` line as [`Parser::face_line`] reads it.
+enum Word {
+    /// `i` or `i/...`: the vertex index `i` as written.
+    Index(i64),
+    /// The line's end: past its line feed, or the file's end.
+    End,
+    /// A comment, or a word that is not a corner (or one that may continue the statement on the
+    /// next line): the line is read as a statement instead.
+    Other,
+}
+
+/// The word of an `f` line at `at` in `rest` (the rest of the file), and `at` moved past it.
+#[inline(always)]
+fn corner_word(rest: &[u8], at: &mut usize) -> Word {
+    while rest.get(*at).copied().is_some_and(blank) {
+        *at += 1;
+    }
+    match rest.get(*at) {
+        None => return Word::End,
+        Some(b'\n') => {
+            *at += 1;
+            return Word::End;
+        }
+        Some(b'#') => return Word::Other,
+        Some(_) => {}
+    }
+    // (A number ends at a blank or a line feed, so within the line.)
+    let Some((i, end)) = text::leading_i64(&rest[*at..]) else {
+        return Word::Other;
+    };
+    *at += end;
+    match rest.get(*at) {
+        None => {}
+        Some(b) if b.is_ascii_whitespace() => {}
+        Some(b'/') => {
+            while let Some(&b) = rest.get(*at).filter(|b| !b.is_ascii_whitespace()) {
+                // (A `\` may end the line: the statement goes on on the next one.)
+                if b == b'\\' {
+                    return Word::Other;
+                }
+                *at += 1;
+            }
+        }
+        Some(_) => return Word::Other,
+    }
+    Word::Index(i)
 }
 
 /// ASCII whitespace other than a line feed: what separates the words of a line.
@@ -1084,8 +1123,30 @@ mod tests {
     #[test]
     fn quick_lines_read_as_statements() {
         const WORDS: [&str; 24] = [
-            "1", "2", "3", "-1", "-3", "0", "+2", "4/1", "2//3", "1/2/3", "-1/1", "1.5", "2e1",
-            "nan", "1.#IND", "#", "#x", "\\", "x", "\x0b", "\u{e9}", "9999999999", "3#", "1/",
+            "1",
+            "2",
+            "3",
+            "-1",
+            "-3",
+            "0",
+            "+2",
+            "4/1",
+            "2//3",
+            "1/2/3",
+            "-1/1",
+            "1.5",
+            "2e1",
+            "nan",
+            "1.#IND",
+            "#",
+            "#x",
+            "\\",
+            "x",
+            "\x0b",
+            "\u{e9}",
+            "9999999999",
+            "3#",
+            "1/",
         ];
         const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", "\r"];
         const ENDS: [&str; 6] = ["\n", "\n", "\r\n", " \\\n", "\\\n", " \n"];
