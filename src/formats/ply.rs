@@ -1376,7 +1376,10 @@ mod tests {
             "{e}"
         );
         // A square (two triangles), then three triangles: five triangles from four faces.
-        let five = bulk("uchar", &[&[0, 1, 2, 3], &[0, 1, 2], &[1, 2, 3], &[0, 2, 3]]);
+        let five = bulk(
+            "uchar",
+            &[&[0, 1, 2, 3], &[0, 1, 2], &[1, 2, 3], &[0, 2, 3]],
+        );
         let mut cx = cx();
         cx.limits.max_triangles = 5;
         assert_eq!(parse(&five, &cx).unwrap().triangles.len(), 5);
