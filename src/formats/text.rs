@@ -339,7 +339,8 @@ pub(crate) fn leading_i64(bytes: &[u8]) -> Option<(i64, usize)> {
 #[inline(always)]
 fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
     // Fewer than 8 digits followed by another byte (every index of a mesh file below 10^7):
-    // the eight bytes from `at` in a few word operations, without a branch per digit.
+    // the eight bytes from `at` in a few word operations, without a branch per digit; longer
+    // numbers go on eight bytes at a time.
     // (Fewer than eight bytes left: taken with zeros after them, which are not digits.)
     let rest = bytes.get(at..).unwrap_or_default();
     let chunk = match rest.first_chunk::<8>() {
@@ -358,22 +359,33 @@ fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
         }
         return Some((eight_digits(digits << (64 - 8 * len)), at + len));
     }
-    let mut value = 0u64;
-    let mut end = at;
-    while let Some(&b) = bytes.get(end) {
-        let d = b.wrapping_sub(b'0');
-        if d > 9 {
-            break;
-        }
-        // 19 digits always fit a u64: only longer numbers need the checked steps.
-        value = if end - at < 19 {
-            value * 10 + d as u64
-        } else {
-            value.checked_mul(10)?.checked_add(d as u64)?
+    // Eight digits or more (the 17 of a double written in full): on eight bytes at a time.
+    let (mut value, mut end) = (eight_digits(digits), at + 8);
+    loop {
+        let rest = &bytes[end..];
+        let chunk = match rest.first_chunk::<8>() {
+            Some(&chunk) => u64::from_le_bytes(chunk),
+            None => (rest.iter().enumerate()).fold(0, |c, (k, &b)| c | u64::from(b) << (8 * k)),
         };
-        end += 1;
+        let digits = chunk.wrapping_sub(0x3030_3030_3030_3030);
+        let odd = (digits.wrapping_add(0x7676_7676_7676_7676) | digits) & 0x8080_8080_8080_8080;
+        let len = (odd.trailing_zeros() / 8) as usize;
+        if len == 0 {
+            return Some((value, end));
+        }
+        let part = eight_digits(digits << (64 - 8 * len));
+        let scale = 10u64.pow(len as u32);
+        // 19 digits always fit a u64: only longer numbers need the checked steps.
+        value = if end - at + len <= 19 {
+            value * scale + part
+        } else {
+            value.checked_mul(scale)?.checked_add(part)?
+        };
+        end += len;
+        if len < 8 {
+            return Some((value, end));
+        }
     }
-    (end > at).then_some((value, end))
 }
 
 /// The number written by eight bytes of digit values 0-9, the first (the lowest byte) the most
