@@ -359,8 +359,15 @@ fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
         }
         return Some((eight_digits(digits << (64 - 8 * len)), at + len));
     }
-    // Eight digits or more (the 17 of a double written in full): on eight bytes at a time.
-    let (mut value, mut end) = (eight_digits(digits), at + 8);
+    // Eight digits or more (the 17 of a double written in full): on eight bytes at a time, out of
+    // line so that the short numbers' path stays small where it is inlined.
+    more_digits(bytes, at, eight_digits(digits))
+}
+
+/// [`leading_digits`] past the eight digits from `at`, whose value is `value`.
+#[inline(never)]
+fn more_digits(bytes: &[u8], at: usize, value: u64) -> Option<(u64, usize)> {
+    let (mut value, mut end) = (value, at + 8);
     loop {
         let rest = &bytes[end..];
         let chunk = match rest.first_chunk::<8>() {
