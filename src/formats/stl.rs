@@ -236,7 +236,12 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         )))
     };
     while let Some((tok, line)) = tokens.next() {
-        match keyword(tok) {
+        // (Keywords are nearly always written in lower case.)
+        let key = match tok {
+            b"vertex" | b"facet" | b"normal" | b"outer" | b"loop" | b"endloop" | b"endfacet" => tok,
+            _ => keyword(tok),
+        };
+        match key {
             b"solid" => {
                 solids += 1;
                 tokens.skip_line();

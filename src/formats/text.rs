@@ -305,7 +305,9 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
 /// The `f64` that `str::parse::<f64>` gives for these bytes, or `None` where it gives an error.
 #[inline]
 pub(crate) fn parse_f64(bytes: &[u8]) -> Option<f64> {
-    fast_float2::parse(bytes).ok()
+    // (Where the fast path reads a number, it ends where fast-float2's would: a shorter number
+    // than the bytes is no number for either.)
+    leading_f64(bytes).and_then(|(x, n)| (n == bytes.len()).then_some(x))
 }
 
 /// `str::parse::<i64>` on bytes: an optional `+` or `-`, then one or more ASCII digits, in range.
