@@ -54,6 +54,14 @@ fn shown(w: &[u8]) -> String {
     String::from_utf8_lossy(&w[..w.len().min(40)]).into_owned()
 }
 
+fn over_limit(cx: &ReadContext) -> ReadError {
+    ReadError::new(format!(
+        "the file has more than {} triangles, over the limit: raise limits.max_triangles in the \
+         config to scan it",
+        cx.limits.max_triangles
+    ))
+}
+
 fn line_err(line: u64, what: impl std::fmt::Display) -> ReadError {
     ReadError::new(format!("OFF line {line}: {what}"))
 }
@@ -84,7 +92,21 @@ pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail),
 fn parse_with(
     bytes: &[u8],
     cx: &ReadContext,
+    detail: Option<&mut Detail>,
+) -> Result<Mesh, ReadError> {
+    let quick = detail.is_none();
+    parse_lines(bytes, cx, detail, quick)
+}
+
+/// Reads the file. With `quick`, a vertex line of exactly `x y z` and a face line of exactly
+/// `3 a b c` (indices in range) are read whole by [`text::Tokens::line`]; everything else, and
+/// every line without `quick`, as tokens. The two ways give the same mesh, notes and errors (a
+/// test reads random files both ways).
+fn parse_lines(
+    bytes: &[u8],
+    cx: &ReadContext,
     mut detail: Option<&mut Detail>,
+    quick: bool,
 ) -> Result<Mesh, ReadError> {
     let mut mesh = Mesh::default();
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
@@ -220,6 +242,11 @@ fn parse_with(
         ))
     };
     for k in 0..n_vertices {
+        if let Some((p, len)) = body.line(text::leading_f64).filter(|_| quick) {
+            body.pass(len);
+            mesh.positions.push(p);
+            continue;
+        }
         let mut p = [0.0f64; 3];
         for c in &mut p {
             let (x, no) = body
@@ -241,6 +268,18 @@ fn parse_with(
     let mut tally = SplitTally::default();
     let mut poly = Vec::new();
     for k in 0..n_faces {
+        if let Some(([3, a, b, c], len)) = body.line(text::leading_i64).filter(|_| quick) {
+            let t = [a, b, c];
+            if t.iter().all(|&i| (0..n_vertices as i64).contains(&i)) {
+                body.pass(len);
+                // What `triangulate` does with a triangle (and the tally ignores it).
+                mesh.triangles.push(t.map(|i| i as u32));
+                if mesh.triangles.len() as u64 > cx.limits.max_triangles {
+                    return Err(over_limit(cx));
+                }
+                continue;
+            }
+        }
         let (n, no) = body
             .number(text::leading_u64)
             .ok_or_else(|| truncated(k, n_faces, "faces"))?;
@@ -288,11 +327,7 @@ fn parse_with(
         let split = polygon::triangulate(&poly, &mesh.positions, &mut mesh.triangles);
         tally.add(split, no);
         if mesh.triangles.len() as u64 > cx.limits.max_triangles {
-            return Err(ReadError::new(format!(
-                "the file has more than {} triangles, over the limit: raise limits.max_triangles \
-                 in the config to scan it",
-                cx.limits.max_triangles
-            )));
+            return Err(over_limit(cx));
         }
     }
     tally.notes("line", &mut mesh.notes);
@@ -314,6 +349,90 @@ mod tests {
 
     fn ok(s: &str) -> Mesh {
         parse(s.as_bytes(), &cx()).unwrap()
+    }
+
+    /// Random files of vertex and face lines with odd words, extra numbers, comments, blank and
+    /// wrapped lines, and line ends give the same mesh, notes and errors read with whole lines
+    /// where they are plain as read token by token.
+    #[test]
+    fn quick_lines_read_as_tokens() {
+        const WORDS: [&str; 14] = [
+            "-1", "0", "1.5", "nan", "#c", "x", "4", "+2", "1e400", "3#", "\u{e9}", "\x0b", "9", "",
+        ];
+        const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", "\r"];
+        const ENDS: [&str; 5] = ["\n", "\n", "\r\n", " \n", "\n\n"];
+        let mut seed = 0x6a09_e667_f3bc_c908_u64;
+        let mut pick = |n: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % n as u64) as usize
+        };
+        let cx = cx();
+        let (mut read, mut errors) = (0, 0);
+        for _ in 0..6_000 {
+            let (nv, nf) = (3 + pick(3), pick(5));
+            let mut file = format!("OFF\n{nv} {nf} 0\n");
+            for k in 0..nv + nf {
+                let face = k >= nv;
+                let mut words: Vec<String> = if face {
+                    let n = if pick(8) == 0 { 4 } else { 3 };
+                    std::iter::once(n.to_string())
+                        .chain((0..n).map(|_| pick(nv).to_string()))
+                        .collect()
+                } else {
+                    (0..3)
+                        .map(|_| format!("{}.{}", pick(3), pick(10)))
+                        .collect()
+                };
+                match pick(10) {
+                    0 => words.push(WORDS[pick(WORDS.len())].to_string()),
+                    1 => {
+                        let at = pick(words.len());
+                        words[at] = WORDS[pick(WORDS.len())].to_string();
+                    }
+                    _ => {}
+                }
+                if pick(4) == 0 {
+                    file.push_str(GAPS[pick(GAPS.len())]);
+                }
+                for (i, w) in words.iter().enumerate() {
+                    if i > 0 {
+                        // Now and then a line wrapped inside a vertex or a face.
+                        file.push_str(if pick(30) == 0 {
+                            "\n"
+                        } else {
+                            GAPS[pick(GAPS.len())]
+                        });
+                    }
+                    file.push_str(w);
+                }
+                file.push_str(ENDS[pick(ENDS.len())]);
+            }
+            if pick(2) == 0 {
+                file.pop();
+            }
+            let quick = parse_lines(file.as_bytes(), &cx, None, true);
+            let tokens = parse_lines(file.as_bytes(), &cx, None, false);
+            match (quick, tokens) {
+                (Ok(q), Ok(t)) => {
+                    let bits = |m: &Mesh| -> Vec<[u64; 3]> {
+                        m.positions.iter().map(|p| p.map(f64::to_bits)).collect()
+                    };
+                    assert_eq!(bits(&q), bits(&t), "{file:?}");
+                    assert_eq!(q.triangles, t.triangles, "{file:?}");
+                    assert_eq!(q.notes, t.notes, "{file:?}");
+                    read += usize::from(!q.triangles.is_empty());
+                }
+                (Err(q), Err(t)) => {
+                    assert_eq!(q.0, t.0, "{file:?}");
+                    errors += 1;
+                }
+                (q, t) => panic!("{file:?}: {:?} against {:?}", q.err(), t.err()),
+            }
+        }
+        // Both outcomes are common, so both ways were compared.
+        assert!(read > 500 && errors > 500, "{read} {errors}");
     }
 
     fn err(s: &str) -> String {

@@ -279,6 +279,50 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
         Some((Err(token), line))
     }
 
+    /// The `N` numbers of the line at the current position, read by `leading`, when the line is
+    /// just them: blanks (spaces, tabs, `\r`, form feeds) around and between them, a line feed or
+    /// the end of the bytes after them. With the bytes to [`Tokens::pass`] to go past the line;
+    /// `None` for any other line. Where it reads numbers, reading them one by one with
+    /// [`Tokens::number`] and then skipping the line ends at the same place.
+    #[inline]
+    pub(crate) fn line<T: Copy + Default, const N: usize>(
+        &self,
+        leading: impl Fn(&[u8]) -> Option<(T, usize)>,
+    ) -> Option<([T; N], usize)> {
+        let rest = self.bytes.get(self.pos..)?;
+        let blank = |b: &u8| matches!(b, b' ' | b'\t' | b'\r' | b'\x0c');
+        let mut out = [T::default(); N];
+        let mut at = 0;
+        for x in &mut out {
+            while rest.get(at).is_some_and(blank) {
+                at += 1;
+            }
+            let (value, n) = leading(&rest[at..])?;
+            at += n;
+            *x = value;
+            if !rest.get(at).is_none_or(|b| blank(b) || *b == b'\n') {
+                return None;
+            }
+        }
+        while rest.get(at).is_some_and(blank) {
+            at += 1;
+        }
+        match rest.get(at) {
+            None => Some((out, at)),
+            Some(b'\n') => Some((out, at + 1)),
+            Some(_) => None,
+        }
+    }
+
+    /// Goes past a line [`Tokens::line`] read, `len` bytes.
+    #[inline]
+    pub(crate) fn pass(&mut self, len: usize) {
+        self.pos += len;
+        if self.bytes[..self.pos].last() == Some(&b'\n') && len > 0 {
+            self.line += 1;
+        }
+    }
+
     /// The rest of the current line (without a comment and surrounding blanks), then skips it.
     pub(crate) fn rest_of_line(&mut self) -> &'a [u8] {
         let start = self.pos.min(self.bytes.len());
@@ -292,7 +336,13 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
 
     /// Skips to the start of the next line.
     pub(crate) fn skip_line(&mut self) {
-        match memchr::memchr(b'\n', &self.bytes[self.pos.min(self.bytes.len())..]) {
+        let rest = &self.bytes[self.pos.min(self.bytes.len())..];
+        // (Most often the line feed is the next byte: after a line's last number.)
+        let feed = match rest.first() {
+            Some(b'\n') => Some(0),
+            _ => memchr::memchr(b'\n', rest),
+        };
+        match feed {
             Some(k) => {
                 self.pos += k + 1;
                 self.line += 1;
