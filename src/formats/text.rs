@@ -336,13 +336,7 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
 
     /// Skips to the start of the next line.
     pub(crate) fn skip_line(&mut self) {
-        let rest = &self.bytes[self.pos.min(self.bytes.len())..];
-        // (Most often the line feed is the next byte: after a line's last number.)
-        let feed = match rest.first() {
-            Some(b'\n') => Some(0),
-            _ => memchr::memchr(b'\n', rest),
-        };
-        match feed {
+        match memchr::memchr(b'\n', &self.bytes[self.pos.min(self.bytes.len())..]) {
             Some(k) => {
                 self.pos += k + 1;
                 self.line += 1;
