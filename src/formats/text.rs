@@ -318,7 +318,7 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
     #[inline]
     pub(crate) fn pass(&mut self, len: usize) {
         self.pos += len;
-        if self.bytes[..self.pos].last() == Some(&b'\n') && len > 0 {
+        if len > 0 && self.bytes[self.pos - 1] == b'\n' {
             self.line += 1;
         }
     }
@@ -387,17 +387,7 @@ fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
     // Fewer than 8 digits followed by another byte (every index of a mesh file below 10^7):
     // the eight bytes from `at` in a few word operations, without a branch per digit; longer
     // numbers go on eight bytes at a time.
-    // (Fewer than eight bytes left: taken with zeros after them, which are not digits.)
-    let rest = bytes.get(at..).unwrap_or_default();
-    let chunk = match rest.first_chunk::<8>() {
-        Some(&chunk) => u64::from_le_bytes(chunk),
-        None => (rest.iter().enumerate()).fold(0, |c, (k, &b)| c | u64::from(b) << (8 * k)),
-    };
-    let digits = chunk.wrapping_sub(0x3030_3030_3030_3030);
-    // Bit 7 of a byte is set where the byte is not a digit: its value less `'0'` is over 9
-    // (adding 0x76 reaches bit 7) or negative (wrapped: bit 7 already set). A borrow or a
-    // carry only ever crosses from such a byte into the bytes after it.
-    let odd = (digits.wrapping_add(0x7676_7676_7676_7676) | digits) & 0x8080_8080_8080_8080;
+    let (digits, odd) = eight_bytes(bytes, at);
     if odd != 0 {
         let len = odd.trailing_zeros() as usize / 8;
         if len == 0 {
@@ -415,13 +405,7 @@ fn leading_digits(bytes: &[u8], at: usize) -> Option<(u64, usize)> {
 fn more_digits(bytes: &[u8], at: usize, value: u64) -> Option<(u64, usize)> {
     let (mut value, mut end) = (value, at + 8);
     loop {
-        let rest = &bytes[end..];
-        let chunk = match rest.first_chunk::<8>() {
-            Some(&chunk) => u64::from_le_bytes(chunk),
-            None => (rest.iter().enumerate()).fold(0, |c, (k, &b)| c | u64::from(b) << (8 * k)),
-        };
-        let digits = chunk.wrapping_sub(0x3030_3030_3030_3030);
-        let odd = (digits.wrapping_add(0x7676_7676_7676_7676) | digits) & 0x8080_8080_8080_8080;
+        let (digits, odd) = eight_bytes(bytes, end);
         let len = (odd.trailing_zeros() / 8) as usize;
         if len == 0 {
             return Some((value, end));
@@ -439,6 +423,24 @@ fn more_digits(bytes: &[u8], at: usize, value: u64) -> Option<(u64, usize)> {
             return Some((value, end));
         }
     }
+}
+
+/// The eight bytes of `bytes` from `at`, each less `'0'`, and a mask with bit 7 of each byte set
+/// where the byte is not a digit. (Fewer than eight bytes left: taken with zeros after them,
+/// which are not digits.)
+#[inline(always)]
+fn eight_bytes(bytes: &[u8], at: usize) -> (u64, u64) {
+    let rest = bytes.get(at..).unwrap_or_default();
+    let chunk = match rest.first_chunk::<8>() {
+        Some(&chunk) => u64::from_le_bytes(chunk),
+        None => (rest.iter().enumerate()).fold(0, |c, (k, &b)| c | u64::from(b) << (8 * k)),
+    };
+    let digits = chunk.wrapping_sub(0x3030_3030_3030_3030);
+    // Bit 7 of a byte is set where the byte is not a digit: its value less `'0'` is over 9
+    // (adding 0x76 reaches bit 7) or negative (wrapped: bit 7 already set). A borrow or a
+    // carry only ever crosses from such a byte into the bytes after it.
+    let odd = (digits.wrapping_add(0x7676_7676_7676_7676) | digits) & 0x8080_8080_8080_8080;
+    (digits, odd)
 }
 
 /// The number written by eight bytes of digit values 0-9, the first (the lowest byte) the most
