@@ -1152,12 +1152,7 @@ mod tests {
         const ENDS: [&str; 6] = ["\n", "\n", "\r\n", " \\\n", "\\\n", " \n"];
         const STARTS: [&str; 8] = ["v", "v", "v", "f", "f", "f ", "vt", "# c"];
         let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut pick = |n: usize| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed % n as u64) as usize
-        };
+        let mut pick = |n: usize| (text::random(&mut seed) % n as u64) as usize;
         let cx = cx();
         let (mut quick_read, mut errors) = (0, 0);
         for _ in 0..6_000 {

@@ -362,12 +362,7 @@ mod tests {
         const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", "\r"];
         const ENDS: [&str; 5] = ["\n", "\n", "\r\n", " \n", "\n\n"];
         let mut seed = 0x6a09_e667_f3bc_c908_u64;
-        let mut pick = |n: usize| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed % n as u64) as usize
-        };
+        let mut pick = |n: usize| (text::random(&mut seed) % n as u64) as usize;
         let cx = cx();
         let (mut read, mut errors) = (0, 0);
         for _ in 0..6_000 {

@@ -529,17 +529,19 @@ fn leading_decimal(bytes: &[u8]) -> Option<(f64, usize)> {
     Some((if bytes[0] == b'-' { -x } else { x }, end))
 }
 
+/// A tiny xorshift for the tests' random inputs (no `rand` crate): the next number after
+/// `seed`, which it becomes.
+#[cfg(test)]
+pub(crate) fn random(seed: &mut u64) -> u64 {
+    *seed ^= *seed << 13;
+    *seed ^= *seed >> 7;
+    *seed ^= *seed << 17;
+    *seed
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A tiny xorshift for the random strings below (no `rand` crate).
-    fn random(seed: &mut u64) -> u64 {
-        *seed ^= *seed << 13;
-        *seed ^= *seed >> 7;
-        *seed ^= *seed << 17;
-        *seed
-    }
 
     /// The same answer as the standard parser: both refuse, or both give the same bits (any NaN
     /// for a NaN: only its sign could differ, and nothing reads it).
