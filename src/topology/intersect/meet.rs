@@ -178,7 +178,7 @@ fn vertex_meet<const SHORTCUTS: bool>(
 /// both of the other face's strictly on the other. Then the projected faces share only `v`, and so
 /// do the faces. `false` says nothing.
 fn cones_apart(axes: Axes, v: Point, a: Point, b: Point, c: Point, d: Point) -> bool {
-    let [v, a, b, c, d] = [v, a, b, c, d].map(|p| axes.of(p));
+    let [v, a, b, c, d] = [axes.of(v), axes.of(a), axes.of(b), axes.of(c), axes.of(d)];
     let turn = o2(v, a, b);
     if turn == 0.0 {
         return false;
@@ -199,14 +199,14 @@ fn cones_apart(axes: Axes, v: Point, a: Point, b: Point, c: Point, d: Point) -> 
 /// normal settle it first (two triangles whose shadows are apart are apart).
 fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
     let f = [plane.p, plane.q, plane.r];
-    let quick = g.map(|x| plane.quick_side(x));
+    let quick = each(g, |x| plane.quick_side(x));
     if let [Some(x), Some(y), Some(z)] = quick {
         if one_strict_side([x, y, z]) {
             return false;
         }
     } else if SHORTCUTS {
         let axes = plane.flat();
-        let (f2, g2) = (f.map(|x| axes.of(x)), g.map(|x| axes.of(x)));
+        let (f2, g2) = (each(f, |x| axes.of(x)), each(g, |x| axes.of(x)));
         if separates(f2, &g2) || separates(g2, &f2) {
             return false;
         }
@@ -218,13 +218,13 @@ fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
     if sg == [0.0; 3] {
         // One plane (then f's vertices are on g's plane too: no need to ask).
         let axes = plane.axes();
-        return coplanar_triangles_meet(f.map(|x| axes.of(x)), g.map(|x| axes.of(x)));
+        return coplanar_triangles_meet(each(f, |x| axes.of(x)), each(g, |x| axes.of(x)));
     }
     if let Some(touch) = touching(g, sg, plane) {
         return touch;
     }
     let plane = Plane::of(g[0], g[1], g[2]);
-    let sf = f.map(|x| plane.side(x));
+    let sf = each(f, |x| plane.side(x));
     if one_strict_side(sf) {
         return false;
     }
@@ -253,7 +253,7 @@ fn touching(t: [Point; 3], s: [f64; 3], plane: &Plane) -> Option<bool> {
             let axes = axes();
             Some(point_in_triangle_2d(
                 axes.of(t[k]),
-                other.map(|x| axes.of(x)),
+                each(other, |x| axes.of(x)),
             ))
         }
         2 => {
@@ -267,7 +267,7 @@ fn touching(t: [Point; 3], s: [f64; 3], plane: &Plane) -> Option<bool> {
             Some(segment_meets_triangle_2d(
                 axes.of(p),
                 axes.of(q),
-                other.map(|x| axes.of(x)),
+                each(other, |x| axes.of(x)),
             ))
         }
         _ => None,
@@ -364,7 +364,7 @@ fn segment_meets_triangle(p: Point, q: Point, sp: f64, sq: f64, t: [Point; 3]) -
     }
     if sp == 0.0 || sq == 0.0 {
         let axes = plane_axes(t[0], t[1], t[2]);
-        let t2 = t.map(|x| axes.of(x));
+        let t2 = each(t, |x| axes.of(x));
         return match (sp == 0.0, sq == 0.0) {
             (true, true) => segment_meets_triangle_2d(axes.of(p), axes.of(q), t2),
             (true, false) => point_in_triangle_2d(axes.of(p), t2),
@@ -407,7 +407,7 @@ fn segment_meets_triangle_2d(p: [f64; 2], q: [f64; 2], t: [[f64; 2]; 3]) -> bool
     if separates(t, &[p, q]) {
         return false;
     }
-    !one_strict_side(t.map(|x| o2(p, q, x)))
+    !one_strict_side(each(t, |x| o2(p, q, x)))
 }
 
 /// Whether `p` lies in the closed triangle `t` (in one plane, projected).
@@ -471,6 +471,13 @@ fn has_tiny(differences: &[Point]) -> bool {
         .iter()
         .flatten()
         .any(|&x| x != 0.0 && x.abs() < TINY)
+}
+
+/// `f` of each of three values, written out: `array::map` is not always inlined here, and a call
+/// per pair of faces costs as much as the tests.
+#[inline(always)]
+fn each<T: Copy, U>(a: [T; 3], f: impl Fn(T) -> U) -> [U; 3] {
+    [f(a[0]), f(a[1]), f(a[2])]
 }
 
 /// The three signs are all strictly positive or all strictly negative.
