@@ -242,7 +242,7 @@ fn parse_lines(
         ))
     };
     for k in 0..n_vertices {
-        if let Some((p, len)) = body.line(text::leading_f64).filter(|_| quick) {
+        if let Some((p, len)) = quick.then(|| body.line(text::leading_f64)).flatten() {
             body.pass(len);
             mesh.positions.push(p);
             continue;
@@ -268,7 +268,7 @@ fn parse_lines(
     let mut tally = SplitTally::default();
     let mut poly = Vec::new();
     for k in 0..n_faces {
-        if let Some(([3, a, b, c], len)) = body.line(text::leading_i64).filter(|_| quick) {
+        if let Some(([3, a, b, c], len)) = quick.then(|| body.line(text::leading_i64)).flatten() {
             let t = [a, b, c];
             if t.iter().all(|&i| (0..n_vertices as i64).contains(&i)) {
                 body.pass(len);
