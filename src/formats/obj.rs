@@ -679,21 +679,9 @@ impl Parser<'_> {
     /// one (`vertex` then reads the words again and says what is wrong).
     #[inline]
     fn vertex_line(&mut self, rest: &[u8]) -> Result<Option<usize>, ReadError> {
-        let mut p = [0.0f64; 3];
-        let mut at = 2;
-        for c in &mut p {
-            while rest.get(at).copied().is_some_and(blank) {
-                at += 1;
-            }
-            let Some((x, n)) = text::leading_f64(&rest[at..]) else {
-                return Ok(None);
-            };
-            at += n;
-            if rest.get(at).is_some_and(|b| !b.is_ascii_whitespace()) {
-                return Ok(None);
-            }
-            *c = x;
-        }
+        let Some((p, at)) = text::leading_numbers(rest, 2, blank, text::leading_f64) else {
+            return Ok(None);
+        };
         let len = match &rest[at..] {
             [] => at,
             [b'\n', ..] => at + 1,

@@ -770,21 +770,7 @@ impl QuickAscii {
     ) -> Option<([T; N], usize)> {
         // ASCII whitespace that is not a line end (`is_ascii_whitespace` without `\n`, `\r`).
         let blank = |b: u8| matches!(b, b' ' | b'\t' | 0x0c);
-        let mut out = [T::default(); N];
-        let mut at = 0;
-        for x in &mut out {
-            while rest.get(at).is_some_and(|&b| blank(b)) {
-                at += 1;
-            }
-            let (value, n) = leading(&rest[at..])?;
-            at += n;
-            match rest.get(at) {
-                None | Some(b'\n' | b'\r') => {}
-                Some(&b) if blank(b) => {}
-                Some(_) => return None,
-            }
-            *x = value;
-        }
+        let (out, mut at) = text::leading_numbers(rest, 0, blank, leading)?;
         // The other scalars' tokens (at least `more`) and anything after them, to the line end.
         let mut tokens = 0;
         let mut in_token = false;
