@@ -679,7 +679,7 @@ impl Parser<'_> {
     /// one (`vertex` then reads the words again and says what is wrong).
     #[inline]
     fn vertex_line(&mut self, rest: &[u8]) -> Result<Option<usize>, ReadError> {
-        let Some((p, at)) = text::leading_numbers(rest, 2, blank, text::leading_f64) else {
+        let Some((p, at)) = text::leading_numbers(rest, 2, text::blank, text::leading_f64) else {
             return Ok(None);
         };
         let len = match &rest[at..] {
@@ -792,7 +792,7 @@ enum Word {
 /// The word of an `f` line at `at` in `rest` (the rest of the file), and `at` moved past it.
 #[inline(always)]
 fn corner_word(rest: &[u8], at: &mut usize) -> Word {
-    while rest.get(*at).copied().is_some_and(blank) {
+    while rest.get(*at).copied().is_some_and(text::blank) {
         *at += 1;
     }
     match rest.get(*at) {
@@ -824,12 +824,6 @@ fn corner_word(rest: &[u8], at: &mut usize) -> Word {
         Some(_) => return Word::Other,
     }
     Word::Index(i)
-}
-
-/// ASCII whitespace other than a line feed: what separates the words of a line.
-#[inline(always)]
-fn blank(b: u8) -> bool {
-    matches!(b, b' ' | b'\t' | b'\r' | b'\x0c')
 }
 
 /// The longest leading part of `w` that is a number (like C's `strtod`), if any.

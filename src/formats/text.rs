@@ -290,9 +290,8 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
         leading: impl Fn(&[u8]) -> Option<(T, usize)>,
     ) -> Option<([T; N], usize)> {
         let rest = self.bytes.get(self.pos..)?;
-        let blank = |b: &u8| matches!(b, b' ' | b'\t' | b'\r' | b'\x0c');
-        let (out, mut at) = leading_numbers(rest, 0, |b| blank(&b), leading)?;
-        while rest.get(at).is_some_and(blank) {
+        let (out, mut at) = leading_numbers(rest, 0, blank, leading)?;
+        while rest.get(at).copied().is_some_and(blank) {
             at += 1;
         }
         match rest.get(at) {
@@ -332,6 +331,13 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
             None => self.pos = self.bytes.len(),
         }
     }
+}
+
+/// ASCII whitespace other than a line feed: what separates the words of a line (of OBJ and OFF;
+/// in PLY a `\r` ends the line).
+#[inline(always)]
+pub(crate) fn blank(b: u8) -> bool {
+    matches!(b, b' ' | b'\t' | b'\r' | b'\x0c')
 }
 
 /// The `N` numbers of `rest` from `at` on, each after any bytes `blank` takes, read by `leading`
