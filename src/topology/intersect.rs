@@ -33,7 +33,8 @@ use rayon::prelude::*;
 
 use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
-use tree::{Box3, Tree, Visit};
+use crate::geometry::morton;
+use tree::{Placed, Tree, Visit};
 
 /// What the test reads of a mesh: the welded points, the Corner Table of the faces the analysis
 /// keeps, each table face's edge-connected component and which faces to leave out.
@@ -160,17 +161,6 @@ pub(crate) fn intersect_table(
     intersect(&surface, search)
 }
 
-/// A face in the sorted order of the broad phase.
-#[derive(Debug, Clone, Copy)]
-struct Face {
-    vertices: [u32; 3],
-    /// Its table face.
-    t: u32,
-    /// The face's number in the findings.
-    face: u32,
-    component: u32,
-}
-
 /// Finds the faces of `surface` that meet.
 pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let nt = surface.table.triangle_count();
@@ -178,63 +168,51 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let scaled = scaled_points(surface.points);
     let points: &[[f64; 3]] = scaled.as_deref().unwrap_or(surface.points);
     let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
+    let box_at = |t: u32| tree::box_of(&corners(t));
     let mut stars = stars::flat_stars(points, surface.table);
 
-    // In table order (the analysis sorts faces by vertex, so this reads points nearly in order):
-    // the faces kept, each with its box and what the walk needs of it, in one loop on one thread.
-    // Runs gathered on every thread and joined were no quicker on two threads than this loop on
-    // one (1M faces: 12-50 against 10-18 ms): the loop is bound by memory, and the join copied
-    // every face once more.
-    let (boxes, kept) = {
-        let mut boxes: Vec<Box3> = Vec::with_capacity(nt);
-        let mut kept: Vec<Face> = Vec::with_capacity(nt);
-        for t in 0..nt {
-            let [a, b, c] = corners(t as u32);
-            // The zero-area bound is the mesh's own: measure the face in its own coordinates.
-            let area = match scaled {
-                Some(_) => {
-                    let [a, b, c] = triangles[t].map(|v| surface.points[v as usize]);
-                    cross2(a, b, c)
-                }
-                None => cross2(a, b, c),
-            };
-            if area <= surface.zero_bound || stars::is_set(&stars.collinear, t as u32) {
-                continue;
-            }
-            let t = t as u32;
-            boxes.push(tree::box_of(&[a, b, c]));
-            kept.push(Face {
-                vertices: triangles[t as usize],
-                t,
-                face: surface.number.map_or(t, |n| n[t as usize]),
-                component: (surface.component)(t),
-            });
+    // The table faces kept and their box centres, in table order (the analysis sorts faces by
+    // vertex, so this reads points nearly in order). Their boxes are not kept: each is computed
+    // once more, into the tree, which costs less than holding 24 bytes a face beside it.
+    let mut kept: Vec<u32> = Vec::with_capacity(nt);
+    let mut centres: Vec<[f32; 3]> = Vec::with_capacity(nt);
+    for t in 0..nt as u32 {
+        // The zero-area bound is the mesh's own: measure the face in its own coordinates.
+        let [a, b, c] = triangles[t as usize].map(|v| surface.points[v as usize]);
+        if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
+            kept.push(t);
+            centres.push(tree::centre(&box_at(t)));
         }
-        (boxes, kept)
-    };
-    let order = tree::morton_order(&boxes);
-    // The faces in that order, so that faces close in the walk are close in memory.
-    let faces: Vec<Face> = order
+    }
+    let order = morton::order(kept.len(), |i| centres[i]);
+    drop(centres);
+    // The table face at each place of the sorted order.
+    let faces: Vec<u32> = order
         .par_iter()
         .with_min_len(1 << 14)
         .map(|&i| kept[i as usize])
         .collect();
-    drop(kept);
-    let mut place = vec![u32::MAX; nt];
-    for (p, f) in faces.iter().enumerate() {
-        place[f.t as usize] = p as u32;
-    }
+    drop((kept, order));
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
     // walk skips those pairs.
-    let tree = Tree::build(&boxes, &order, &|p| {
-        let vertices = faces[p].vertices;
-        let flat = (0..3).fold(0, |m, k| {
-            m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
-        });
-        (vertices, flat, stars.turns[faces[p].t as usize])
+    let tree = Tree::build(faces.len(), &|p| {
+        let t = faces[p];
+        let vertices = triangles[t as usize];
+        Placed {
+            bounds: box_at(t),
+            vertices,
+            skipped: (0..3).fold(0, |m, k| {
+                m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
+            }),
+            bits: stars.turns[t as usize],
+        }
     });
     let along = std::mem::take(&mut stars.along);
-    drop((boxes, order, stars));
+    drop(stars);
+    let mut place = vec![u32::MAX; nt];
+    for (p, &t) in faces.iter().enumerate() {
+        place[t as usize] = p as u32;
+    }
 
     let numbers = surface
         .number
@@ -245,7 +223,9 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let stop = AtomicBool::new(false);
     let shared = Shared {
         points,
+        surface,
         faces: &faces,
+        tree: &tree,
         involved: &involved,
         stop: &stop,
         search: *search,
@@ -294,7 +274,10 @@ fn scaled_points(points: &[[f64; 3]]) -> Option<Vec<[f64; 3]>> {
 /// What every task of the walk reads and the flags it sets.
 struct Shared<'a> {
     points: &'a [[f64; 3]],
-    faces: &'a [Face],
+    surface: &'a Surface<'a>,
+    /// The table face at each place of the sorted order.
+    faces: &'a [u32],
+    tree: &'a Tree,
     involved: &'a [AtomicU64],
     stop: &'a AtomicBool,
     search: Search,
@@ -351,11 +334,10 @@ impl Visit for Finder<'_> {
 
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
-        let (fa, fb) = (&s.faces[a as usize], &s.faces[b as usize]);
-        let shared = meet::shared(fa.vertices, fb.vertices);
+        let (va, vb) = (s.tree.vertices(a), s.tree.vertices(b));
+        let shared = meet::shared(va, vb);
         // Written out: `array::map` here costs as much as the loads.
-        let corners = |f: &Face| {
-            let [a, b, c] = f.vertices;
+        let corners = |[a, b, c]: [u32; 3]| {
             [
                 s.points[a as usize],
                 s.points[b as usize],
@@ -368,18 +350,24 @@ impl Visit for Finder<'_> {
             self.row = None;
         }
         let (_, plane) = self.row.get_or_insert_with(|| {
-            let [p, q, r] = corners(fa);
+            let [p, q, r] = corners(va);
             (a, meet::Plane::of(p, q, r))
         });
-        if !meet::plane_meets(shared, plane, corners(fb)) {
+        if !meet::plane_meets(shared, plane, corners(vb)) {
             return;
         }
+        // What the findings need of the two faces: their components and numbers.
+        let (ta, tb) = (s.faces[a as usize], s.faces[b as usize]);
+        let component = s.surface.component;
+        let (fa, fb) = (component(ta), component(tb));
+        let number = |t: u32| s.surface.number.map_or(t, |n| n[t as usize]);
+        let (na, nb) = (number(ta), number(tb));
         let t = &mut self.tally;
-        if fa.component == fb.component {
+        if fa == fb {
             t.within += 1;
         } else {
             t.between += 1;
-            let (x, y) = (fa.component, fb.component);
+            let (x, y) = (fa, fb);
             t.components.push([x.min(y), x.max(y)]);
             if t.components.len() >= 2 * t.components_tidy.max(512) {
                 t.components.sort_unstable();
@@ -387,12 +375,12 @@ impl Visit for Finder<'_> {
                 t.components_tidy = t.components.len();
             }
         }
-        for f in [fa.face, fb.face] {
+        for f in [na, nb] {
             s.involved[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
         }
         let kept = s.search.kept_pairs;
         if kept > 0 {
-            let (f, g) = (fa.face, fb.face);
+            let (f, g) = (na, nb);
             t.pairs.push([f.min(g), f.max(g)]);
             if t.pairs.len() >= kept.max(256).saturating_mul(2) {
                 t.pairs.sort_unstable();
@@ -410,6 +398,6 @@ impl Visit for Finder<'_> {
 
     fn no_pairs_within(&mut self, places: std::ops::Range<usize>, bits: u8) -> bool {
         let faces = self.shared.faces;
-        self.patches.is_flat(places, bits, |p| faces[p].t)
+        self.patches.is_flat(places, bits, |p| faces[p])
     }
 }

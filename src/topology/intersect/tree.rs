@@ -19,7 +19,6 @@
 
 use glam::{BVec4A, Vec4};
 
-use crate::geometry::morton;
 use rayon::prelude::*;
 
 /// Faces per leaf.
@@ -105,10 +104,9 @@ fn levels_above<T: Copy>(leaves: Vec<T>, join: impl Fn(T, T) -> T) -> Vec<Vec<T>
     levels
 }
 
-/// The order of `boxes` along a Morton curve through their centres (ties keep their order).
-pub(super) fn morton_order(boxes: &[Box3]) -> Vec<u32> {
-    let centre = |b: &Box3| std::array::from_fn(|k| 0.5 * b[k] + 0.5 * b[k + 3]);
-    morton::order(boxes.len(), |i| centre(&boxes[i]))
+/// The centre of a box, the point the faces are sorted by along a Morton curve.
+pub(super) fn centre(b: &Box3) -> [f32; 3] {
+    std::array::from_fn(|k| 0.5 * b[k] + 0.5 * b[k + 3])
 }
 
 /// What the walk calls for each pair of faces (positions in the sorted order) with overlapping
@@ -145,6 +143,18 @@ const FREE: u32 = u32::MAX - 1;
 /// The id standing in for a vertex whose pairs are not skipped (matches no vertex).
 const NONE: u32 = u32::MAX;
 
+/// What the tree holds of one face.
+pub(super) struct Placed {
+    pub(super) bounds: Box3,
+    /// Its vertex ids (below [`crate::corner_table::MAX_VERTICES`]).
+    pub(super) vertices: [u32; 3],
+    /// Bit `k`: pairs of faces sharing its vertex `k` are skipped (a property of the vertex, the
+    /// same from every face that has it).
+    pub(super) skipped: u8,
+    /// Its turn bits ([`super::patches::turn_bits`]).
+    pub(super) bits: u8,
+}
+
 /// The tree over sorted face boxes.
 pub(super) struct Tree {
     leaves: Vec<Leaf>,
@@ -157,36 +167,29 @@ pub(super) struct Tree {
 }
 
 impl Tree {
-    /// The tree over `boxes` taken in `order`. `faces(p)` gives the vertices of the face at place
-    /// `p` of the order (ids below [`crate::corner_table::MAX_VERTICES`]) and, bit `k`, whether
-    /// pairs of faces sharing its vertex `k` are skipped: a property of the vertex, the same from
-    /// every face that has it; and its turn bits ([`super::patches::turn_bits`]).
-    pub(super) fn build(
-        boxes: &[Box3],
-        order: &[u32],
-        faces: &(dyn Fn(usize) -> ([u32; 3], u8, u8) + Sync),
-    ) -> Tree {
-        let (leaves, leaf_bits): (Vec<Leaf>, Vec<u8>) = order
-            .par_chunks(LEAF)
+    /// The tree over `n` faces in their sorted order, `face(p)` the one at place `p`. The tree
+    /// keeps what it needs of them, so the caller need not hold the boxes while it is built.
+    pub(super) fn build(n: usize, face: &(dyn Fn(usize) -> Placed + Sync)) -> Tree {
+        let (leaves, leaf_bits): (Vec<Leaf>, Vec<u8>) = (0..n.div_ceil(LEAF))
+            .into_par_iter()
             .with_min_len(1 << 12)
-            .enumerate()
-            .map(|(l, chunk)| {
+            .map(|l| {
                 let mut leaf = Leaf {
                     boxes: [[f32::NAN; LEAF]; 6],
                     vertices: [[FREE; LEAF]; 3],
                     skipped: [0; LEAF],
                 };
                 let mut all = u8::MAX;
-                for (j, &i) in chunk.iter().enumerate() {
-                    for (row, &x) in leaf.boxes.iter_mut().zip(&boxes[i as usize]) {
+                for j in 0..LEAF.min(n - LEAF * l) {
+                    let f = face(LEAF * l + j);
+                    for (row, x) in leaf.boxes.iter_mut().zip(f.bounds) {
                         row[j] = x;
                     }
-                    let (vertices, skipped, bits) = faces(LEAF * l + j);
-                    for (row, v) in leaf.vertices.iter_mut().zip(vertices) {
+                    for (row, v) in leaf.vertices.iter_mut().zip(f.vertices) {
                         row[j] = v;
                     }
-                    leaf.skipped[j] = skipped;
-                    all &= bits;
+                    leaf.skipped[j] = f.skipped;
+                    all &= f.bits;
                 }
                 (leaf, all)
             })
@@ -214,8 +217,15 @@ impl Tree {
             leaves,
             levels,
             bits,
-            faces: order.len(),
+            faces: n,
         }
+    }
+
+    /// The vertex ids of the face at place `p`.
+    #[inline]
+    pub(super) fn vertices(&self, p: u32) -> [u32; 3] {
+        let (leaf, j) = (&self.leaves[p as usize / LEAF], p as usize % LEAF);
+        std::array::from_fn(|k| leaf.vertices[k][j])
     }
 
     /// Calls `visit.pair` once for every unordered pair of faces whose boxes overlap.
@@ -412,6 +422,7 @@ impl Tree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::morton;
 
     /// Collects the pairs the walk reports, as (lower, higher) sorted positions.
     struct Pairs(Vec<(u32, u32)>);
@@ -463,14 +474,23 @@ mod tests {
                 [a, b, b + 1 + (next() * 6.0) as u32]
             })
             .collect();
-        let order = morton_order(&boxes);
+        let order = morton::order(boxes.len(), |i| centre(&boxes[i]));
         let faces = |p: usize| {
             let v = vertices[order[p] as usize];
-            let bits = (0..3).fold(0, |m, k| m | u8::from(skipped[v[k] as usize]) << k);
-            (v, bits, 0)
+            let skipped = (0..3).fold(0, |m, k| m | u8::from(skipped[v[k] as usize]) << k);
+            Placed {
+                bounds: boxes[order[p] as usize],
+                vertices: v,
+                skipped,
+                bits: 0,
+            }
         };
         let mut found = Pairs(Vec::new());
-        Tree::build(&boxes, &order, &faces).walk(&mut found);
+        let tree = Tree::build(boxes.len(), &faces);
+        for p in 0..boxes.len() {
+            assert_eq!(tree.vertices(p as u32), vertices[order[p] as usize]);
+        }
+        tree.walk(&mut found);
         let mut found: Vec<(u32, u32)> = found
             .0
             .iter()
