@@ -195,7 +195,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     drop((kept, order));
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
     // walk skips those pairs.
-    let tree = Tree::build(faces.len(), &|p| {
+    let tree = Tree::build(faces.len(), |p| {
         let t = faces[p];
         let vertices = triangles[t as usize];
         Placed {

@@ -35,6 +35,7 @@ const PARALLEL_FACES: usize = 1 << 13;
 pub(super) type Box3 = [f32; 6];
 
 /// The outward-rounded `f32` box of a triangle's finite points.
+#[inline]
 pub(super) fn box_of(points: &[[f64; 3]; 3]) -> Box3 {
     let mut b = [0.0f32; 6];
     for k in 0..3 {
@@ -169,7 +170,7 @@ pub(super) struct Tree {
 impl Tree {
     /// The tree over `n` faces in their sorted order, `face(p)` the one at place `p`. The tree
     /// keeps what it needs of them, so the caller need not hold the boxes while it is built.
-    pub(super) fn build(n: usize, face: &(dyn Fn(usize) -> Placed + Sync)) -> Tree {
+    pub(super) fn build(n: usize, face: impl Fn(usize) -> Placed + Sync) -> Tree {
         let (leaves, leaf_bits): (Vec<Leaf>, Vec<u8>) = (0..n.div_ceil(LEAF))
             .into_par_iter()
             .with_min_len(1 << 12)
@@ -486,7 +487,7 @@ mod tests {
             }
         };
         let mut found = Pairs(Vec::new());
-        let tree = Tree::build(boxes.len(), &faces);
+        let tree = Tree::build(boxes.len(), faces);
         for p in 0..boxes.len() {
             assert_eq!(tree.vertices(p as u32), vertices[order[p] as usize]);
         }
