@@ -136,6 +136,38 @@ fn two_overlapping_boxes() {
     assert!(found.pairs_between > 0);
 }
 
+/// A CAD-like plate (`shapes::plate`: a 4 x 3 grid of unit cells minus cell (1, 1), thickness 1)
+/// whose top and bottom are each one plane perpendicular to z, joined edge to edge with a hole:
+/// the search's flat regions. A closed solid, so no pair within it. Beside it, as components of
+/// their own: a triangle lying on the top, strictly inside the top face (0,0) (1,0) (1,1) of cell
+/// (0, 0) (every point has x > y, y >= 0.1 and x <= 0.8), so it meets that face only (a coplanar
+/// overlap); and two triangles high above it, one in z = 5 and one in y = 0.5 whose edge
+/// (0.5, 0.5, 4)-(0.5, 0.5, 6) pierces the first's inside at (0.5, 0.5, 5). Two pairs between
+/// components, none within.
+#[test]
+fn plate_with_a_sticker_and_a_crossing_pair_apart() {
+    let sticker = Mesh::new(
+        vec![[0.2, 0.1, 1.0], [0.8, 0.1, 1.0], [0.8, 0.7, 1.0]],
+        vec![[0, 1, 2]],
+    );
+    let crossing = Mesh::new(
+        vec![
+            [0.0, 0.0, 5.0],
+            [2.0, 0.0, 5.0],
+            [0.0, 2.0, 5.0],
+            [0.5, 0.5, 4.0],
+            [0.5, 0.5, 6.0],
+            [1.0, 0.5, 5.0],
+        ],
+        vec![[0, 1, 2], [3, 4, 5]],
+    );
+    let mesh = shapes::merge(&[shapes::plate(4, 3, &[(1, 1)]), sticker, crossing]);
+    let found = all_pairs(&mesh);
+    assert_eq!(found.self_intersections, 0);
+    assert_eq!(found.pairs_between, 2);
+    assert_eq!(found.intersecting_components(), 2);
+}
+
 /// The 2x2x2 box with a 1x1x1 box inside it facing into the void: the inner box is 0.5 from every
 /// side, so no faces meet: 0 and 0, and the inner shell is still a cavity.
 #[test]

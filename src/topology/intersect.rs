@@ -15,7 +15,10 @@
 //!   share that vertex or an edge; decided exactly, and true of nearly every vertex of a smooth
 //!   surface, it leaves out most of the pairs neighbouring faces make), and the pairs within a
 //!   tree node whose faces are a flat patch (`patches`: seen along an axis, the faces' shadows
-//!   tile the inside of simple loops once, so none of them meet);
+//!   tile the inside of simple loops once, so none of them meet), and the pairs within a flat
+//!   region (`regions`: faces of one plane perpendicular to an axis, joined edge to edge, that
+//!   are a flat patch; the tops and bottoms of CAD plates, whose long faces the tree cannot
+//!   separate);
 //! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
 //!   come from the Corner Table's welded vertex ids.
 //!
@@ -24,6 +27,7 @@
 
 mod meet;
 mod patches;
+mod regions;
 mod stars;
 mod tree;
 
@@ -170,6 +174,8 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let corners = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
     let box_at = |t: u32| tree::box_of(&corners(t));
     let mut stars = stars::flat_stars(points, surface.table);
+    // Pairs within a flat region (faces of one plane that tile it once) are skipped as found.
+    let regions = regions::flat_regions(points, surface.table, &stars.turns, &stars.along);
 
     // The table faces kept and their box centres, in table order (the analysis sorts faces by
     // vertex, so this reads points nearly in order). Their boxes are not kept: each is computed
@@ -226,6 +232,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         surface,
         faces: &faces,
         tree: &tree,
+        regions: &regions,
         involved: &involved,
         stop: &stop,
         search: *search,
@@ -278,6 +285,8 @@ struct Shared<'a> {
     /// The table face at each place of the sorted order.
     faces: &'a [u32],
     tree: &'a Tree,
+    /// Per table face, its flat region ([`regions::flat_regions`]; empty: none).
+    regions: &'a [u32],
     involved: &'a [AtomicU64],
     stop: &'a AtomicBool,
     search: Search,
@@ -334,6 +343,12 @@ impl Visit for Finder<'_> {
 
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
+        if !s.regions.is_empty() {
+            let r = s.regions[s.faces[a as usize] as usize];
+            if r != regions::NONE && r == s.regions[s.faces[b as usize] as usize] {
+                return;
+            }
+        }
         let (va, vb) = (s.tree.vertices(a), s.tree.vertices(b));
         let shared = meet::shared(va, vb);
         // Written out: `array::map` here costs as much as the loads.

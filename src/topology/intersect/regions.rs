@@ -1,0 +1,256 @@
+//! **Flat regions**: the faces of one plane perpendicular to an axis (`x`, `y` or `z` constant)
+//! that join edge to edge, which no pair of their own can meet in when they are a flat patch; the
+//! search skips those pairs as it finds them.
+//!
+//! CAD exports and print models are made of plates whose top and bottom are such a plane each,
+//! cut into long thin faces. Their boxes overlap by the hundred thousand, and every such pair is
+//! exactly coplanar, the narrow phase's most expensive case. The tree's flat patches
+//! ([`super::patches`]) do not cover them: a Morton node of a thin plate holds faces of its top,
+//! its bottom and its sides, which turn different ways.
+//!
+//! A region is a class of the relation "share a manifold edge that both traverse in opposite
+//! directions, both faces turn along axis `k` only and the same way, and the fourth point has the
+//! same coordinate `k` as the edge". Such faces are in one plane `x_k = c` (a face folded back
+//! onto its neighbour turns the other way and is not joined). A region of
+//! at least [`MIN_FACES`] faces that passes the flat-patch test is a **flat region**: two of its
+//! faces share a point only where they share a vertex or an edge (the argument of
+//! [`super::patches`], which holds for any set of faces, not only a node of the tree), so they do
+//! not meet.
+//!
+//! Tilted planes are not looked for. Their exact test is an `orient3d` whose fast filter fails on
+//! points exactly in one plane, and its exact fallback ran on the diagonal of every planar quad of
+//! a smooth mesh: on an 871k-face torus made of quads it cost more (+27% of the search's
+//! instructions) than the regions saved anywhere in the corpus. A face is in a plane
+//! perpendicular to axis `k` exactly when it turns along `k` only (its exact normal has no other
+//! component), which its turn bits, computed by the stars' pass, already say: the test costs a
+//! byte a face, and a mesh with no joins allocates nothing.
+
+use crate::corner_table::{CornerTable, NON_MANIFOLD};
+
+use super::meet::Point;
+use super::patches::Patches;
+
+/// Regions smaller than this are not tested (their few pairs cost less than the test).
+const MIN_FACES: usize = 3;
+
+/// No flat region.
+pub(super) const NONE: u32 = u32::MAX;
+
+/// Per table face, its flat region ([`NONE`] when it is in none); empty when the mesh has none.
+/// `turns`: the faces' turn bits ([`super::patches::turn_bits`]); `along`: per vertex, the axes
+/// its star is flat along ([`super::stars::Stars::along`]).
+pub(super) fn flat_regions(
+    points: &[Point],
+    table: &CornerTable,
+    turns: &[u8],
+    along: &[u8],
+) -> Vec<u32> {
+    let triangles = table.triangles();
+    let nt = triangles.len();
+    // The joins: pairs of faces on a coplanar consistent manifold edge (few on most meshes).
+    let mut joins: Vec<(u32, u32)> = Vec::new();
+    for t in 0..nt as u32 {
+        // In a plane perpendicular to axis `k` exactly when the face turns along `k` only: its
+        // exact normal has no other component.
+        let Some(k) = single_axis(turns[t as usize]) else {
+            continue;
+        };
+        let at = points[triangles[t as usize][0] as usize][k];
+        for c in 3 * t..3 * t + 3 {
+            let o = table.o(c);
+            if o == c || o == NON_MANIFOLD {
+                continue;
+            }
+            let u = CornerTable::t(o);
+            // The neighbour shares the edge's two points, so it is in the plane when its third is.
+            if u > t
+                && turns[t as usize] == turns[u as usize]
+                && points[table.v(o) as usize][k] == at
+                && table.is_consistent(c)
+            {
+                joins.push((t, u));
+            }
+        }
+    }
+    if joins.len() + 1 < MIN_FACES {
+        return Vec::new();
+    }
+
+    // Classes by union-find over the faces that take part (their ranks in `ids`).
+    let mut ids: Vec<u32> = joins.iter().flat_map(|&(t, u)| [t, u]).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let rank = |t: u32| ids.binary_search(&t).expect("a face of a join") as u32;
+    let mut parent: Vec<u32> = (0..ids.len() as u32).collect();
+    let root = |parent: &mut Vec<u32>, mut x: u32| {
+        while parent[x as usize] != x {
+            let up = parent[parent[x as usize] as usize];
+            parent[x as usize] = up;
+            x = up;
+        }
+        x
+    };
+    for &(t, u) in &joins {
+        let (x, y) = (root(&mut parent, rank(t)), root(&mut parent, rank(u)));
+        if x != y {
+            parent[x.max(y) as usize] = x.min(y);
+        }
+    }
+    drop(joins);
+    let mut size = vec![0u32; ids.len()];
+    for i in 0..ids.len() as u32 {
+        let r = root(&mut parent, i);
+        parent[i as usize] = r;
+        size[r as usize] += 1;
+    }
+    // The faces of the classes of at least MIN_FACES, class by class, each a run of places.
+    let mut members: Vec<(u32, u32)> = (0..ids.len())
+        .filter(|&i| size[parent[i] as usize] as usize >= MIN_FACES)
+        .map(|i| (parent[i], ids[i]))
+        .collect();
+    drop((parent, size, ids));
+    if members.is_empty() {
+        return Vec::new();
+    }
+    members.sort_unstable();
+    let mut place = vec![u32::MAX; nt];
+    for (p, &(_, t)) in members.iter().enumerate() {
+        place[t as usize] = p as u32;
+    }
+
+    let mut region = Vec::new();
+    let mut patches = Patches::new(points, table, &place, along);
+    let mut first = 0;
+    while first < members.len() {
+        let r = members[first].0;
+        let end = first + members[first..].partition_point(|m| m.0 == r);
+        let bits = members[first..end]
+            .iter()
+            .fold(u8::MAX, |m, &(_, t)| m & turns[t as usize]);
+        if patches.is_flat(first..end, bits, |p| members[p].1) {
+            if region.is_empty() {
+                region = vec![NONE; nt];
+            }
+            for &(_, t) in &members[first..end] {
+                region[t as usize] = r;
+            }
+        }
+        first = end;
+    }
+    region
+}
+
+/// The axis `k` when `bits` (turn bits, [`super::patches::turn_bits`]) has a turn along `k` only.
+#[inline]
+fn single_axis(bits: u8) -> Option<usize> {
+    // One bit per axis that has any turn.
+    let axes = (bits | bits >> 1) & 0b01_0101;
+    axes.is_power_of_two()
+        .then_some(axes.trailing_zeros() as usize / 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::topology::intersect::stars::flat_stars;
+
+    fn regions_of(points: &[Point], triangles: &[[u32; 3]]) -> Vec<u32> {
+        let table = CornerTable::build(triangles, points.len());
+        let stars = flat_stars(points, &table);
+        flat_regions(points, &table, &stars.turns, &stars.along)
+    }
+
+    /// An `n` x `n` grid of squares in the plane `z = h`, each cut into two faces, turning
+    /// counter-clockwise seen from +z (or clockwise with `down`); vertex ids from `base`.
+    fn grid(n: u32, h: f64, down: bool, base: u32) -> (Vec<Point>, Vec<[u32; 3]>) {
+        let id = |i: u32, j: u32| base + i * (n + 1) + j;
+        let points = (0..=n)
+            .flat_map(|i| (0..=n).map(move |j| [f64::from(j), f64::from(i), h]))
+            .collect();
+        let mut triangles = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                let (a, b, c, d) = (id(i, j), id(i, j + 1), id(i + 1, j + 1), id(i + 1, j));
+                for t in [[a, b, c], [a, c, d]] {
+                    triangles.push(if down { [t[0], t[2], t[1]] } else { t });
+                }
+            }
+        }
+        (points, triangles)
+    }
+
+    /// A flat grid is one flat region; its faces are all in it.
+    #[test]
+    fn a_flat_grid_is_one_region() {
+        let (points, triangles) = grid(4, 0.0, false, 0);
+        let regions = regions_of(&points, &triangles);
+        assert_eq!(regions.len(), triangles.len());
+        assert!(regions.iter().all(|&r| r != NONE && r == regions[0]));
+    }
+
+    /// Lifting one inner vertex by the least amount breaks the plane: none of its six faces is
+    /// coplanar with a neighbour (each has two points in the plane and the lifted one off it),
+    /// so none is in a region; the rest, a grid with a hexagonal hole, is still one flat region.
+    #[test]
+    fn a_vertex_off_the_plane_splits_the_region() {
+        let (mut points, triangles) = grid(4, 0.0, false, 0);
+        let lifted = 2 * 5 + 2;
+        points[lifted][2] = 1e-300;
+        let regions = regions_of(&points, &triangles);
+        assert_eq!(regions.len(), triangles.len());
+        let (around, away): (Vec<usize>, Vec<usize>) =
+            (0..triangles.len()).partition(|&t| triangles[t].contains(&(lifted as u32)));
+        assert_eq!(around.len(), 6);
+        assert!(around.iter().all(|&t| regions[t] == NONE));
+        assert!(away
+            .iter()
+            .all(|&t| regions[t] != NONE && regions[t] == regions[away[0]]));
+    }
+
+    /// Faces on one centre turning the same way around it, a spoke every quarter turn, each
+    /// further out (spoke `i` at radius `i` along +x, +y, -x, -y, +x, ...): coplanar neighbours
+    /// that agree on every edge, so one class. Three faces turn three quarters: a flat region.
+    /// Four close the turn with spoke 5 along +x over spoke 1, so the fourth face's edge runs
+    /// over the first's: they touch there, and the flat-patch test turns the class down; eight go
+    /// round twice and overlap.
+    #[test]
+    fn faces_winding_twice_are_no_region() {
+        let mut points: Vec<Point> = vec![[0.0; 3]];
+        for i in 1..=9u32 {
+            let r = f64::from(i);
+            points.push(
+                [[r, 0.0, 0.0], [0.0, r, 0.0], [-r, 0.0, 0.0], [0.0, -r, 0.0]]
+                    [(i as usize - 1) % 4],
+            );
+        }
+        let triangles: Vec<[u32; 3]> = (1..9).map(|i| [0, i, i + 1]).collect();
+        let regions = regions_of(&points, &triangles[..3]);
+        assert!(regions.iter().all(|&r| r != NONE && r == regions[0]));
+        assert!(regions_of(&points, &triangles[..4]).is_empty());
+        assert!(regions_of(&points, &triangles).is_empty());
+    }
+
+    /// A face folded back onto the grid across a border edge is coplanar and agrees with its
+    /// neighbour on the edge's direction, but turns the other way: it is not joined, and the
+    /// grid stays a flat region.
+    #[test]
+    fn a_face_folded_onto_the_plane_is_not_joined() {
+        let (mut points, mut triangles) = grid(3, 0.0, false, 0);
+        points.push([0.5, 0.25, 0.0]);
+        triangles.push([1, 0, 16]);
+        let regions = regions_of(&points, &triangles);
+        let fold = triangles.len() - 1;
+        assert_eq!(regions[fold], NONE);
+        assert!(regions[..fold]
+            .iter()
+            .all(|&r| r != NONE && r == regions[0]));
+    }
+
+    /// A mesh with no two coplanar neighbours has no regions (and allocates nothing per face).
+    #[test]
+    fn a_tetrahedron_has_no_regions() {
+        let points = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let triangles = vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]];
+        assert!(regions_of(&points, &triangles).is_empty());
+    }
+}
