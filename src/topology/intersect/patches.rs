@@ -84,6 +84,8 @@ pub(super) struct Patches<'a> {
     next: Vec<u32>,
     /// Where each loop starts in `shadow`.
     loops: Vec<u32>,
+    /// The most loops a flat patch may have here ([`MAX_LOOPS`] unless set).
+    max_loops: usize,
     used: Vec<bool>,
     by_low_x: Vec<u32>,
     active: Vec<u32>,
@@ -109,15 +111,23 @@ impl<'a> Patches<'a> {
             ids: Vec::new(),
             next: Vec::new(),
             loops: Vec::new(),
+            max_loops: MAX_LOOPS,
             used: Vec::new(),
             by_low_x: Vec::new(),
             active: Vec::new(),
         }
     }
 
+    /// The same, allowing flat patches of up to `loops` loops (the test's last step costs the
+    /// loops times their points).
+    pub(super) fn with_max_loops(mut self, loops: usize) -> Self {
+        self.max_loops = loops;
+        self
+    }
+
     /// A copy with its own scratch space, for a parallel task.
     pub(super) fn fork(&self) -> Self {
-        Patches::new(self.points, self.table, self.place, self.along)
+        Patches::new(self.points, self.table, self.place, self.along).with_max_loops(self.max_loops)
     }
 
     /// Whether the faces at places `places` (table faces `face(p)`), whose turn bits all share
@@ -231,7 +241,7 @@ impl<'a> Patches<'a> {
     /// Ends the path's points from `from` on as a loop; false past [`MAX_LOOPS`] loops, or for a
     /// loop of fewer than three points (which no border of faces on manifold edges makes).
     fn close(&mut self, from: usize, axes: Axes) -> bool {
-        if self.loops.len() == MAX_LOOPS || self.path.len() - from < 3 {
+        if self.loops.len() == self.max_loops || self.path.len() - from < 3 {
             return false;
         }
         let begin = self.shadow.len() as u32;
@@ -340,7 +350,7 @@ impl<'a> Patches<'a> {
     }
 }
 
-/// The most loops a flat patch may have.
+/// The most loops a flat patch may have (in the walk's tree nodes, whose tries mostly fail).
 const MAX_LOOPS: usize = 8;
 
 /// The winding number of the closed polygon `points` (point `i` followed by `next[i]`) around
