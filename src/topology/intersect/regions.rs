@@ -12,12 +12,11 @@
 //! directions, and both faces turn along axis `k` only, the same way". A face that turns along
 //! `k` only has an exact normal along `k`, so its three points share coordinate `k`; two such
 //! faces on one edge share it too, so a region lies in one plane `x_k = c` (a face folded back
-//! onto its neighbour turns the other way and is not joined). What makes the skip exact is the
-//! flat-patch test alone: the grouping only chooses which sets are worth testing. A region of
-//! at least [`MIN_FACES`] faces that passes the flat-patch test is a **flat region**: two of its
-//! faces share a point only where they share a vertex or an edge (the argument of
-//! [`super::patches`], which holds for any set of faces, not only a node of the tree), so they do
-//! not meet.
+//! onto its neighbour turns the other way and is not joined). A region of at least [`MIN_FACES`]
+//! faces that passes the flat-patch test is a **flat region**: two of its faces share a point
+//! only where they share a vertex or an edge (the argument of [`super::patches`], which holds for
+//! any set of faces, not only a node of the tree), so they do not meet. What makes the skip exact
+//! is the flat-patch test alone: the grouping only chooses which sets are worth testing.
 //!
 //! Tilted planes are not looked for. Their exact test is an `orient3d` whose fast filter fails on
 //! points exactly in one plane, and its exact fallback ran on the diagonal of every planar quad of
@@ -76,43 +75,10 @@ pub(super) fn flat_regions(
         return Vec::new();
     }
 
-    // Classes by union-find over the faces that take part (their ranks in `ids`).
-    let mut ids: Vec<u32> = joins.iter().flat_map(|&(t, u)| [t, u]).collect();
-    ids.sort_unstable();
-    ids.dedup();
-    let rank = |t: u32| ids.binary_search(&t).expect("a face of a join") as u32;
-    let mut parent: Vec<u32> = (0..ids.len() as u32).collect();
-    let root = |parent: &mut Vec<u32>, mut x: u32| {
-        while parent[x as usize] != x {
-            let up = parent[parent[x as usize] as usize];
-            parent[x as usize] = up;
-            x = up;
-        }
-        x
-    };
-    for &(t, u) in &joins {
-        let (x, y) = (root(&mut parent, rank(t)), root(&mut parent, rank(u)));
-        if x != y {
-            parent[x.max(y) as usize] = x.min(y);
-        }
-    }
-    drop(joins);
-    let mut size = vec![0u32; ids.len()];
-    for i in 0..ids.len() as u32 {
-        let r = root(&mut parent, i);
-        parent[i as usize] = r;
-        size[r as usize] += 1;
-    }
-    // The faces of the classes of at least MIN_FACES, class by class, each a run of places.
-    let mut members: Vec<(u32, u32)> = (0..ids.len())
-        .filter(|&i| size[parent[i] as usize] as usize >= MIN_FACES)
-        .map(|i| (parent[i], ids[i]))
-        .collect();
-    drop((parent, size, ids));
+    let members = classes(joins);
     if members.is_empty() {
         return Vec::new();
     }
-    members.sort_unstable();
     let mut place = vec![u32::MAX; nt];
     for (p, &(_, t)) in members.iter().enumerate() {
         place[t as usize] = p as u32;
@@ -139,6 +105,43 @@ pub(super) fn flat_regions(
         first = end;
     }
     region
+}
+
+/// The faces of the classes of at least [`MIN_FACES`] faces that `joins` make (union-find over
+/// the faces that take part), as `(class, face)` sorted: each class a run.
+fn classes(joins: Vec<(u32, u32)>) -> Vec<(u32, u32)> {
+    let mut ids: Vec<u32> = joins.iter().flat_map(|&(t, u)| [t, u]).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    let rank = |t: u32| ids.binary_search(&t).expect("a face of a join") as u32;
+    let mut parent: Vec<u32> = (0..ids.len() as u32).collect();
+    let root = |parent: &mut Vec<u32>, mut x: u32| {
+        while parent[x as usize] != x {
+            let up = parent[parent[x as usize] as usize];
+            parent[x as usize] = up;
+            x = up;
+        }
+        x
+    };
+    for &(t, u) in &joins {
+        let (x, y) = (root(&mut parent, rank(t)), root(&mut parent, rank(u)));
+        if x != y {
+            parent[x.max(y) as usize] = x.min(y);
+        }
+    }
+    drop(joins);
+    let mut size = vec![0u32; ids.len()];
+    for i in 0..ids.len() as u32 {
+        let r = root(&mut parent, i);
+        parent[i as usize] = r;
+        size[r as usize] += 1;
+    }
+    let mut members: Vec<(u32, u32)> = (0..ids.len())
+        .filter(|&i| size[parent[i] as usize] as usize >= MIN_FACES)
+        .map(|i| (parent[i], ids[i]))
+        .collect();
+    members.sort_unstable();
+    members
 }
 
 /// Whether `bits` (turn bits, [`super::patches::turn_bits`]) have a turn along one axis only.
