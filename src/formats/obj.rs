@@ -1133,8 +1133,8 @@ mod tests {
         const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", "\r"];
         const ENDS: [&str; 6] = ["\n", "\n", "\r\n", " \\\n", "\\\n", " \n"];
         const STARTS: [&str; 8] = ["v", "v", "v", "f", "f", "f ", "vt", "# c"];
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut pick = |n: usize| (text::random(&mut seed) % n as u64) as usize;
+        let mut random = crate::geometry::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut pick = |n: usize| (random() % n as u64) as usize;
         let cx = cx();
         let (mut quick_read, mut errors) = (0, 0);
         for _ in 0..6_000 {

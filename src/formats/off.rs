@@ -361,8 +361,8 @@ mod tests {
         ];
         const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", "\r"];
         const ENDS: [&str; 5] = ["\n", "\n", "\r\n", " \n", "\n\n"];
-        let mut seed = 0x6a09_e667_f3bc_c908_u64;
-        let mut pick = |n: usize| (text::random(&mut seed) % n as u64) as usize;
+        let mut random = crate::geometry::xorshift(0x6a09_e667_f3bc_c908);
+        let mut pick = |n: usize| (random() % n as u64) as usize;
         let cx = cx();
         let (mut read, mut errors) = (0, 0);
         for _ in 0..6_000 {

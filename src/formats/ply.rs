@@ -1148,8 +1148,8 @@ mod tests {
         ];
         const GAPS: [&str; 5] = [" ", "\t", "\x0c", "  ", " \t"];
         const ENDS: [&str; 4] = ["\n", "\r\n", "\r", ""];
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut pick = |n: usize| (text::random(&mut seed) % n as u64) as usize;
+        let mut random = crate::geometry::xorshift(0x9e37_79b9_7f4a_7c15);
+        let mut pick = |n: usize| (random() % n as u64) as usize;
         let mut taken = [0; 2];
         for more in 0..3 {
             let extra: String = (0..more).map(|k| format!("property int e{k}\n")).collect();

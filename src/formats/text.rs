@@ -549,16 +549,6 @@ fn leading_decimal(bytes: &[u8]) -> Option<(f64, usize)> {
     Some((if bytes[0] == b'-' { -x } else { x }, end))
 }
 
-/// A tiny xorshift for the tests' random inputs (no `rand` crate): the next number after
-/// `seed`, which it becomes.
-#[cfg(test)]
-pub(crate) fn random(seed: &mut u64) -> u64 {
-    *seed ^= *seed << 13;
-    *seed ^= *seed >> 7;
-    *seed ^= *seed << 17;
-    *seed
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -712,17 +702,17 @@ mod tests {
     #[test]
     fn random_numbers_read_as_the_standard_parser_reads_them() {
         const CHARS: &[u8] = b"0123456789012345678901234567890123456789..++--eEinfatyINFATY#";
-        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let mut random = crate::geometry::xorshift(0x9E37_79B9_7F4A_7C15);
         for _ in 0..20_000 {
-            let len = 1 + random(&mut seed) as usize % 24;
+            let len = 1 + random() as usize % 24;
             let text: String = (0..len)
-                .map(|_| CHARS[random(&mut seed) as usize % CHARS.len()] as char)
+                .map(|_| CHARS[random() as usize % CHARS.len()] as char)
                 .collect();
             same_as_std(&text);
         }
         // Shortest texts of random doubles, and the same with their last digit changed.
         for _ in 0..20_000 {
-            let x = f64::from_bits(random(&mut seed));
+            let x = f64::from_bits(random());
             let text = format!("{x:e}");
             same_as_std(&text);
             let mut bumped = text.into_bytes();
@@ -745,13 +735,12 @@ mod tests {
             let text = std::str::from_utf8(&b[..end]).unwrap();
             text.parse().ok().map(|v| (v, end))
         }
-        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut random = crate::geometry::xorshift(0x2545_F491_4F6C_DD1D);
         for len in 0..=21 {
             for next in (0..=255u8).map(Some).chain([None]) {
                 for tail in [&b""[..], b"7", b"123456789", b" 1 2 3 4 5 6"] {
-                    let mut digits: Vec<u8> = (0..len)
-                        .map(|_| b'0' + (random(&mut seed) % 10) as u8)
-                        .collect();
+                    let mut digits: Vec<u8> =
+                        (0..len).map(|_| b'0' + (random() % 10) as u8).collect();
                     digits.extend(next);
                     if next.is_some() {
                         digits.extend(tail);
@@ -774,37 +763,37 @@ mod tests {
     /// or the end of the bytes.
     #[test]
     fn decimals_read_quickly_are_the_standard_values() {
-        let mut seed = 0xD1B5_4A32_D192_ED03u64;
+        let mut random = crate::geometry::xorshift(0xD1B5_4A32_D192_ED03);
         let mut quick = 0;
         for _ in 0..200_000 {
             let mut text = String::new();
-            text.push_str(["", "", "-", "+"][random(&mut seed) as usize % 4]);
-            let digits = |seed: &mut u64, text: &mut String| {
-                for _ in 0..random(seed) % 19 {
+            text.push_str(["", "", "-", "+"][random() as usize % 4]);
+            let digits = |random: &mut dyn FnMut() -> u64, text: &mut String| {
+                for _ in 0..random() % 19 {
                     // Zeros more often than the others: leading and trailing zeros, and -0.
-                    let d = random(seed) % 14;
+                    let d = random() % 14;
                     text.push(char::from(b'0' + if d >= 10 { 0 } else { d as u8 }));
                 }
             };
-            digits(&mut seed, &mut text);
-            if !random(&mut seed).is_multiple_of(4) {
+            digits(&mut random, &mut text);
+            if !random().is_multiple_of(4) {
                 text.push('.');
-                digits(&mut seed, &mut text);
+                digits(&mut random, &mut text);
             }
             let next = ["", " ", "\n", "e", "E+", "e-", ".5", "x", "#", "1.25"];
-            match random(&mut seed) % 3 {
-                0 => text.push_str(next[random(&mut seed) as usize % next.len()]),
+            match random() % 3 {
+                0 => text.push_str(next[random() as usize % next.len()]),
                 // An exponent from -40 to 40, written in any of its forms, then maybe more.
                 _ => {
-                    let e = (random(&mut seed) % 81) as i64 - 40;
-                    let sign = ["", "+"][random(&mut seed) as usize % 2];
-                    let zeros = "0".repeat(random(&mut seed) as usize % 3);
-                    let e_ = ["e", "E"][random(&mut seed) as usize % 2];
+                    let e = (random() % 81) as i64 - 40;
+                    let sign = ["", "+"][random() as usize % 2];
+                    let zeros = "0".repeat(random() as usize % 3);
+                    let e_ = ["e", "E"][random() as usize % 2];
                     match e < 0 {
                         true => text.push_str(&format!("{e_}-{zeros}{}", -e)),
                         false => text.push_str(&format!("{e_}{sign}{zeros}{e}")),
                     }
-                    text.push_str(next[random(&mut seed) as usize % next.len()]);
+                    text.push_str(next[random() as usize % next.len()]);
                 }
             }
             let b = text.as_bytes();
