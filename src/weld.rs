@@ -73,6 +73,8 @@ fn weld_each(
             out.map.push(INVALID);
         }
     }
+    // Pushed one by one: hand back what the array grew beyond its size.
+    out.positions.shrink_to_fit();
     out
 }
 
@@ -201,9 +203,11 @@ fn link_run(run: &[u64], positions: &[[f64; 3]], link: &[AtomicU32]) {
 }
 
 /// The numbering in input order: a [`FIRST`] vertex gets the next welded id (and its position is
-/// kept), a linked one its first's id, which comes earlier and so is already numbered.
+/// kept), a linked one its first's id, which comes earlier and so is already numbered. The
+/// positions are counted first, so that their array is allocated once at its size (grown by
+/// pushes, it would hold up to twice that: 40 MB too many for a 5M-face mesh).
 fn number(map: &mut [u32], positions: &[[f64; 3]]) -> Vec<[f64; 3]> {
-    let mut welded = Vec::new();
+    let mut welded = Vec::with_capacity(map.iter().filter(|&&l| l == FIRST).count());
     for i in 0..map.len() {
         let link = map[i];
         if link == FIRST {
@@ -542,6 +546,20 @@ mod tests {
             assert_eq!(parallel.map, reference.map, "{count}");
             assert_eq!(parallel.invalid, reference.invalid);
             assert_eq!(bits(&parallel), bits(&reference));
+        }
+    }
+
+    /// The welded positions are allocated at their size, not grown by doubling: a big mesh's weld
+    /// would otherwise hold up to twice their memory through the whole analysis. 3,000 distinct
+    /// positions, each twice (a push-grown array would have room for 4,096), exact and within a
+    /// tolerance.
+    #[test]
+    fn welded_positions_have_no_spare_room() {
+        let points: Vec<[f64; 3]> = (0..6000).map(|i| [(i % 3000) as f64, 0.0, 1.0]).collect();
+        for tolerance in [0.0, 0.25] {
+            let welded = weld(&points, tolerance);
+            assert_eq!(welded.positions.len(), 3000, "{tolerance}");
+            assert_eq!(welded.positions.capacity(), 3000, "{tolerance}");
         }
     }
 

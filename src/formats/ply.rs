@@ -697,7 +697,7 @@ impl FixedFace {
         let room = limit.saturating_add(1).saturating_sub(out.len() as u64);
         let room = usize::try_from(room).unwrap_or(usize::MAX);
         let records = body.rest.chunks_exact(size).take(count.min(room));
-        out.reserve(records.len());
+        out.reserve_exact(records.len());
         // An `int` index below 0 reads as a `u32` of 2^31 or more: outside this bound.
         let bound = match self.item {
             ScalarType::Int => n_vertices.min(1 << 31),
