@@ -404,7 +404,8 @@ mod tests {
 
     /// A mesh comes out of [`read`] and [`read_retaining`] with no room to spare in its arrays
     /// (which a scan holds through the whole analysis): an OBJ strip of 3,000 triangles on 3,002
-    /// vertices, which its reader pushes one by one (room for 4,096 of each).
+    /// vertices, which its reader reserves for from the file size (a line of 64 bytes) and then
+    /// grows by doubling as it pushes.
     #[test]
     fn read_meshes_have_no_spare_room() {
         let dir = tempfile::tempdir().unwrap();

@@ -9,7 +9,7 @@
 //! from the exact `f64` boxes, so two faces whose closed triangles share a point always have
 //! overlapping boxes here too. A leaf keeps its faces' boxes on a grid of its own, 256 lines per axis
 //! across the leaf's box, a byte a coordinate, rounded outward again (lowest corners down to a line,
-//! highest up): the leaves are most of the search's memory, and this makes them 22 bytes a face
+//! highest up): the leaves are most of the search's memory, and this makes them 22.5 bytes a face
 //! instead of 37. The walk reads the lines back exactly as they were placed (one `f32` multiply and
 //! add, [`grid_line`]), so overlapping boxes still overlap; it may also pair faces whose boxes only
 //! come within a line of each other, which the narrow phase then finds apart.
@@ -182,6 +182,7 @@ impl Leaf {
 struct Lanes {
     /// `[c][h]`: coordinate `c` of the boxes of faces `4h..4h + 4`, as [`Leaf::grid`].
     rows: [[Vec4; 2]; 6],
+    /// As [`Leaf::used`].
     used: u8,
 }
 
@@ -241,12 +242,13 @@ fn grid_step(lo: f32, hi: f32) -> f32 {
 #[inline]
 fn lines(origin: f32, step: f32, row: &[f32; LEAF], up: bool) -> [u8; LEAF] {
     let (o, s) = (Vec4::splat(origin), Vec4::splat(step));
-    let inverse = Vec4::splat(1.0 / step);
+    // Finite even for a zero step or one too small to invert, so that no guess is a NaN.
+    let inverse = Vec4::splat((1.0 / step).min(f32::MAX));
     let mut out = [0u8; LEAF];
     for (half, out) in row.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
         let x = Vec4::from_slice(half);
-        // A guess (a NaN, from a step too small to invert, reads as line 0), then one exact
-        // correction: rounding leaves the guess at most one line off near the origin.
+        // A guess, then one exact correction: rounding leaves the guess at most one line off
+        // near the origin.
         let mut q = ((x - o) * inverse).max(Vec4::ZERO).min(Vec4::splat(255.0));
         // Rounded to a whole number: past 2^23 an f32 holds nothing finer.
         q = (q + Vec4::splat(8_388_608.0)) - Vec4::splat(8_388_608.0);
@@ -264,23 +266,42 @@ fn lines(origin: f32, step: f32, row: &[f32; LEAF], up: bool) -> [u8; LEAF] {
         for (out, b) in out.iter_mut().zip(bits) {
             *out = b.to_bits() as u8;
         }
-        // Far from the origin (a coordinate's rounding worth more than a line) the guess can be
-        // further off: step line by line there.
+        // Far from the origin (a coordinate's rounding worth more than a line) or for a step
+        // too small to invert, the guess can be further off: search the lines there.
         let mut off = off.bitmask();
         while off != 0 {
             let j = off.trailing_zeros() as usize;
             off &= off - 1;
-            let (mut q, x) = (out[j], half[j]);
-            while up && q < u8::MAX && grid_line(origin, step, q) < x {
-                q += 1;
-            }
-            while !up && q > 0 && grid_line(origin, step, q) > x {
-                q -= 1;
-            }
-            out[j] = q;
+            out[j] = line_by_search(origin, step, half[j], up);
         }
     }
     out
+}
+
+/// The line [`lines`] wants for `x`, by a binary search over the 256 lines (their positions
+/// rise with their number): the highest at or below `x` (line 0, the origin, is), or with `up`
+/// the lowest at or above it (line 255 is).
+fn line_by_search(origin: f32, step: f32, x: f32, up: bool) -> u8 {
+    // Invariant: the answer is in lo..=hi.
+    let (mut lo, mut hi) = (0u8, u8::MAX);
+    while lo < hi {
+        if up {
+            let mid = lo + (hi - lo) / 2;
+            if grid_line(origin, step, mid) >= x {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        } else {
+            let mid = hi - (hi - lo) / 2;
+            if grid_line(origin, step, mid) <= x {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+    }
+    lo
 }
 
 /// The vertex id of a free place in a leaf.
@@ -602,7 +623,8 @@ mod tests {
     /// overlapping pairs share one), half the vertices skipped: the walk reports every overlapping
     /// pair that shares no skipped vertex, as a test of all n(n-1)/2 pairs finds them, each once.
     /// Leaves keep boxes on their grid, rounded outward, so it may add pairs whose boxes come
-    /// within a line of the grid (a leaf here is at most 0.5 across: 0.002 a line), and only a few
+    /// within a line of the grid (a leaf here is at most about 1.1 across: under 0.0045 a line, two of
+    /// them within the 0.005 the test widens boxes by), and only a few
     /// (under a tenth as many as the overlapping pairs).
     #[test]
     fn walk_finds_every_overlapping_pair_once_but_those_on_skipped_vertices() {
@@ -701,7 +723,10 @@ mod tests {
     /// the lowest line is the grid's origin. Random rows of every size: leaves near the origin
     /// and far from it (where a line is less than a unit in the last place of the coordinates),
     /// wide and narrow (down to a step too small to invert in `f32`, as a tiny face's box near
-    /// zero has), with repeated values and a row of one value (a zero step).
+    /// zero has), with repeated values, -0.0 beside a grid from 0.0, a row of one value (a zero
+    /// step), and grids that start below the row and end above it (a leaf's highest corners,
+    /// on a grid from its lowest). Where the lines are searched, the search finds the nearest
+    /// line, as a look at all 256 does.
     #[test]
     fn grid_lines_hold_the_boxes() {
         let mut bits = crate::geometry::xorshift(0x5851_f42d_4c95_7f2d);
@@ -713,8 +738,15 @@ mod tests {
             if round % 5 == 0 {
                 row[3] = row[1];
             }
-            let lo = row.iter().copied().fold(f32::INFINITY, f32::min);
-            let hi = row.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            let mut lo = row.iter().copied().fold(f32::INFINITY, f32::min);
+            let mut hi = row.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            if round % 3 == 1 {
+                (lo, hi) = (lo - span * unit(), hi + span * unit());
+            }
+            if round % 7 == 0 && round % 11 == 0 {
+                row[2] = -0.0;
+                (lo, hi) = (0.0, hi.max(0.0));
+            }
             let step = grid_step(lo, hi);
             assert!(grid_line(lo, step, u8::MAX) >= hi, "{lo} {hi} {step}");
             let [below, above] = [false, true].map(|up| lines(lo, step, &row, up));
@@ -727,11 +759,25 @@ mod tests {
             for j in 0..LEAF {
                 assert!(
                     down[j] <= row[j] && row[j] <= up[j],
-                    "{row:?}: {j} {down:?} {up:?}"
+                    "{lo} {step} {row:?}: {j} {down:?} {up:?}"
                 );
                 assert_eq!(down[j], grid_line(lo, step, below[j]));
+                assert_eq!(up[j], grid_line(lo, step, above[j]));
             }
             assert_eq!(grid_line(lo, step, 0), lo);
+            if round % 10 == 0 {
+                for &x in &row {
+                    let lines = (0..=u8::MAX).map(|q| (q, grid_line(lo, step, q)));
+                    let (floor, _) = lines.clone().rev().find(|l| l.1 <= x).unwrap();
+                    let (ceiling, _) = lines.clone().find(|l| l.1 >= x).unwrap();
+                    assert_eq!(line_by_search(lo, step, x, false), floor, "{lo} {step} {x}");
+                    assert_eq!(
+                        line_by_search(lo, step, x, true),
+                        ceiling,
+                        "{lo} {step} {x}"
+                    );
+                }
+            }
         }
     }
 
