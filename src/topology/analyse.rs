@@ -124,9 +124,20 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     }
     a.inconsistent_edges = inconsistent.iter().sum();
 
-    // 3. Fans: non-manifold vertices, vertices per component, holes; beside 5. the faces that
-    // meet, within a component and between components.
-    let fans_pass = || walk_fans(table, &component_of, runs);
+    // 3. Fans: non-manifold vertices, vertices per component, holes, then 4. the per component
+    // numbers and 6. the shells' volumes; beside 5. the faces that meet, within a component and
+    // between components (the shells' nesting, which needs those, comes after both).
+    let faces = Faces {
+        table,
+        points,
+        patches: &patches,
+    };
+    let fans_pass = || {
+        let fans = walk_fans(table, &component_of, runs);
+        count_per_component(&mut components, &fans, &inconsistent, component_of);
+        let shells = shells(&faces, &component_of, &components, &fans.fans);
+        (fans, components, shells)
+    };
     let search_pass = || {
         options.intersections.map(|search| {
             let component_of = |t: u32| component[t as usize];
@@ -140,45 +151,18 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
             )
         })
     };
-    let (fans, intersections) = side_by_side(big, fans_pass, search_pass);
+    let ((fans, components, (mut shells, shell_of)), intersections) =
+        side_by_side(big, fans_pass, search_pass);
     a.intersections = intersections;
     a.nonmanifold_vertices = fans.nonmanifold_vertices;
-    let used_vertices = fans.used_vertices;
-    for (comp, &n) in fans.vertices_per_component.iter().enumerate() {
-        components[comp].vertices = n;
-    }
-    for &corner in &fans.hole_corners {
-        components[component_of(CornerTable::t(corner))].holes += 1;
-    }
-
-    // 4. Per component numbers.
-    let mut split = vec![false; component_count];
-    for &comp in &fans.split_components {
-        split[comp] = true;
-    }
-    for (i, c) in components.iter_mut().enumerate() {
-        c.closed = c.border_edges == 0 && c.nonmanifold_edges == 0;
-        c.manifold = c.nonmanifold_edges == 0 && !split[i];
-        c.oriented = inconsistent[i] == 0;
-        c.euler = c.vertices as i64 - c.edges as i64 + c.faces as i64;
-        let twice_genus = 2 - c.euler - c.holes as i64;
-        c.genus = (c.manifold && c.orientable && twice_genus >= 0 && twice_genus % 2 == 0)
-            .then_some(twice_genus / 2);
-    }
-    a.euler = used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
+    a.euler = fans.used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
 
     let meeting: &[[u32; 2]] = a
         .intersections
         .as_ref()
         .map_or(&[], |i| i.component_pairs.as_slice());
-
-    // 6. Shells: volume, then nesting among the shells that do not meet.
-    let faces = Faces {
-        table,
-        points,
-        patches: &patches,
-    };
-    a.shells = shells(&faces, &component_of, &components, &fans.fans, meeting);
+    nest(&faces, &component_of, &mut shells, &shell_of, meeting);
+    a.shells = shells;
     a.components = components;
     let manifold = a.nonmanifold_edges == 0 && a.nonmanifold_vertices == 0;
     (
@@ -822,6 +806,35 @@ fn fans_of_run(
     found
 }
 
+/// Step 4 of the analysis: each component's vertices and holes from its fans, then whether it is
+/// closed, manifold and oriented, its Euler characteristic and genus.
+fn count_per_component(
+    components: &mut [Component],
+    fans: &Fans,
+    inconsistent: &[usize],
+    component_of: impl Fn(u32) -> usize,
+) {
+    for (comp, &n) in fans.vertices_per_component.iter().enumerate() {
+        components[comp].vertices = n;
+    }
+    for &corner in &fans.hole_corners {
+        components[component_of(CornerTable::t(corner))].holes += 1;
+    }
+    let mut split = vec![false; components.len()];
+    for &comp in &fans.split_components {
+        split[comp] = true;
+    }
+    for (i, c) in components.iter_mut().enumerate() {
+        c.closed = c.border_edges == 0 && c.nonmanifold_edges == 0;
+        c.manifold = c.nonmanifold_edges == 0 && !split[i];
+        c.oriented = inconsistent[i] == 0;
+        c.euler = c.vertices as i64 - c.edges as i64 + c.faces as i64;
+        let twice_genus = 2 - c.euler - c.holes as i64;
+        c.genus = (c.manifold && c.orientable && twice_genus >= 0 && twice_genus % 2 == 0)
+            .then_some(twice_genus / 2);
+    }
+}
+
 /// Adds one to `n`, returning what it was: atomically when `shared` between threads.
 fn bump(n: &AtomicU32, shared: bool) -> u32 {
     if shared {
@@ -841,14 +854,15 @@ fn test_and_set(bits: &mut [u64], i: u32) -> bool {
     was
 }
 
-/// The shells (closed, manifold components) with volume, nesting depth, role and orientation.
+/// The shells (closed, manifold components) with volume and bounding box, and the shell of each
+/// component ([`UNSET`] for one that is not a shell); [`nest`] gives them depth, role and
+/// orientation.
 fn shells(
     faces: &Faces,
     component_of: &impl Fn(u32) -> usize,
     components: &[Component],
     fans: &[(u32, u32)],
-    meeting: &[[u32; 2]],
-) -> Vec<Shell> {
+) -> (Vec<Shell>, Vec<u32>) {
     let mut shell_of = vec![UNSET; components.len()];
     let mut shells: Vec<Shell> = Vec::new();
     for (i, c) in components.iter().enumerate() {
@@ -871,7 +885,7 @@ fn shells(
         }
     }
     if shells.is_empty() {
-        return shells;
+        return (shells, shell_of);
     }
     // Bounding box and P, the mean of the shell's vertices (each fan of a vertex in the shell
     // once: a shell's vertices have one fan each, a pinched vertex one per fan, which moves P a
@@ -934,7 +948,19 @@ fn shells(
             shell.volume = Some(if take_flipped { -v } else { v });
         }
     }
+    (shells, shell_of)
+}
 
+/// The shells' nesting among those that do not meet (`meeting`: the pairs of components whose
+/// faces meet), then each shell's role and whether it is inside out.
+fn nest(
+    faces: &Faces,
+    component_of: &impl Fn(u32) -> usize,
+    shells: &mut [Shell],
+    shell_of: &[u32],
+    meeting: &[[u32; 2]],
+) {
+    let nt = faces.table.triangle_count() as u32;
     // The shells each shell meets (both components of a meeting pair are shells).
     for &[a, b] in meeting {
         let (sa, sb) = (shell_of[a as usize], shell_of[b as usize]);
@@ -943,7 +969,7 @@ fn shells(
             shells[sb as usize].meets.push(sa as usize);
         }
     }
-    for shell in &mut shells {
+    for shell in shells.iter_mut() {
         shell.meets.sort_unstable();
     }
 
@@ -998,7 +1024,6 @@ fn shells(
                 (_, None) => false,
             };
     }
-    shells
 }
 
 /// For each shell marked in `tied`, the parity of its first face by position: the face whose three
