@@ -57,8 +57,9 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     let big = on_every_thread(mesh.triangles.len());
     let runs = if big { rayon::current_num_threads() } else { 1 };
 
-    // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones), beside
-    // 2. patches with orientation parity, then components.
+    // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones); it reads no
+    // other step's result, so it runs beside the shells (below), the one step that cannot be
+    // split over threads.
     let zero_cross2 = zero_area_bound(a.bbox);
     let faces_pass = || {
         // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly
@@ -74,19 +75,13 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         }
         (zero_area, area, count_duplicates(table))
     };
-    let patches_pass = || {
-        let patches = walk_patches(table, runs);
-        let component_of_patch = join_patches(table, &patches, &built.source);
-        (patches, component_of_patch)
-    };
-    let ((zero_area, area, duplicates), (mut patches, component_of_patch)) =
-        side_by_side(big, faces_pass, patches_pass);
-    a.zero_area_faces = zero_area;
-    a.area = area;
+
+    // 2. Patches with orientation parity, then components.
+    let mut patches = walk_patches(table, runs);
+    let component_of_patch = join_patches(table, &patches, &built.source);
     a.edges = table.edge_count();
     a.border_edges = table.border_edge_count();
     a.nonmanifold_edges = table.nonmanifold_edges().len();
-    a.duplicate_faces = duplicates;
 
     let component_count = component_of_patch
         .iter()
@@ -125,8 +120,8 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     a.inconsistent_edges = inconsistent.iter().sum();
 
     // 3. Fans: non-manifold vertices, vertices per component, holes, then 4. the per component
-    // numbers and 6. the shells' volumes; beside 5. the faces that meet, within a component and
-    // between components (the shells' nesting, which needs those, comes after both).
+    // numbers and 6. the shells' volumes (beside 1.); beside 5. the faces that meet, within a
+    // component and between components (the shells' nesting, which needs those, comes after).
     let faces = Faces {
         table,
         points,
@@ -135,8 +130,9 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
     let fans_pass = || {
         let fans = walk_fans(table, &component_of, runs);
         count_per_component(&mut components, &fans, &inconsistent, component_of);
-        let shells = shells(&faces, &component_of, &components, &fans.fans);
-        (fans, components, shells)
+        let shells_pass = || shells(&faces, &component_of, &components, &fans.fans);
+        let (shells, face_counts) = side_by_side(big, shells_pass, faces_pass);
+        (fans, components, shells, face_counts)
     };
     let search_pass = || {
         options.intersections.map(|search| {
@@ -151,8 +147,9 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
             )
         })
     };
-    let ((fans, components, (mut shells, shell_of)), intersections) =
+    let ((fans, components, (mut shells, shell_of), face_counts), intersections) =
         side_by_side(big, fans_pass, search_pass);
+    (a.zero_area_faces, a.area, a.duplicate_faces) = face_counts;
     a.intersections = intersections;
     a.nonmanifold_vertices = fans.nonmanifold_vertices;
     a.euler = fans.used_vertices as i64 - a.edges as i64 + table.triangle_count() as i64;
