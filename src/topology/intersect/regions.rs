@@ -27,6 +27,7 @@
 //! byte a face, and a mesh with no joins allocates nothing.
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
+use crate::topology::analyse::{find, union};
 
 use super::meet::Point;
 use super::patches::Patches;
@@ -115,24 +116,13 @@ fn classes(joins: Vec<(u32, u32)>) -> Vec<(u32, u32)> {
     ids.dedup();
     let rank = |t: u32| ids.binary_search(&t).expect("a face of a join") as u32;
     let mut parent: Vec<u32> = (0..ids.len() as u32).collect();
-    let root = |parent: &mut Vec<u32>, mut x: u32| {
-        while parent[x as usize] != x {
-            let up = parent[parent[x as usize] as usize];
-            parent[x as usize] = up;
-            x = up;
-        }
-        x
-    };
     for &(t, u) in &joins {
-        let (x, y) = (root(&mut parent, rank(t)), root(&mut parent, rank(u)));
-        if x != y {
-            parent[x.max(y) as usize] = x.min(y);
-        }
+        union(&mut parent, rank(t), rank(u));
     }
     drop(joins);
     let mut size = vec![0u32; ids.len()];
     for i in 0..ids.len() as u32 {
-        let r = root(&mut parent, i);
+        let r = find(&mut parent, i);
         parent[i as usize] = r;
         size[r as usize] += 1;
     }
