@@ -710,50 +710,7 @@ fn fans_of_run(
         lone: Vec::new(),
         fans: Vec::new(),
     };
-    let (lo32, hi32) = (lo as u32, hi as u32);
-
-    // From the corner at the vertex in one face, leave through the edge opposite `exit` (`p(c)` or
-    // `n(c)`), find the corner at the vertex in the face across, and go on through its other edge at
-    // the vertex. With the pair consistent, leaving through the edge opposite `p(c)` arrives at
-    // `p(o)`; an inconsistent pair mirrors that. So no step re-reads `V`. A fan is a cycle or a
-    // path of corners, so a walk ends at a border, at a non-manifold edge or back at its start;
-    // `lowest` takes every corner passed.
-    let walk = |start: u32, exit_is_p: bool, visited: &mut [u64], lowest: &mut u32| -> FanEnd {
-        let mut exit = if exit_is_p {
-            CornerTable::p(start)
-        } else {
-            CornerTable::n(start)
-        };
-        let mut exit_is_p = exit_is_p;
-        // A walk passes each corner at most once; the bound only guards against a table that is
-        // not one (a walk that never came back would otherwise not end).
-        for _ in 0..=table.corner_count() {
-            let o = table.o(exit);
-            if o == exit {
-                return FanEnd::Border(exit);
-            }
-            if o == NON_MANIFOLD {
-                return FanEnd::NonManifold;
-            }
-            exit_is_p = exit_is_p == table.is_consistent(exit);
-            let (d, next) = if exit_is_p {
-                (CornerTable::p(o), CornerTable::n(o))
-            } else {
-                (CornerTable::n(o), CornerTable::p(o))
-            };
-            debug_assert_eq!(table.v(d), table.v(start));
-            if d == start {
-                return FanEnd::Closed;
-            }
-            *lowest = (*lowest).min(d);
-            if (lo32..hi32).contains(&d) {
-                test_and_set(visited, d - lo32);
-            }
-            exit = next;
-        }
-        debug_assert!(false, "a fan walk from corner {start} did not end");
-        FanEnd::Closed
-    };
+    let lo32 = lo as u32;
 
     // The unvisited corners in order, found a word of `visited` at a time (most corners are
     // visited by the walk of a fan started at an earlier one).
@@ -773,11 +730,11 @@ fn fans_of_run(
         test_and_set(visited, i as u32);
         let c = (lo + i) as u32;
         let mut lowest = c;
-        let ahead = walk(c, true, visited, &mut lowest);
+        let ahead = walk_side(table, c, true, lo32, visited, &mut lowest);
         let behind = if ahead == FanEnd::Closed {
             FanEnd::Closed
         } else {
-            walk(c, false, visited, &mut lowest)
+            walk_side(table, c, false, lo32, visited, &mut lowest)
         };
         if lowest < lo32 {
             // An earlier run keeps it.
@@ -801,6 +758,62 @@ fn fans_of_run(
         }
     }
     found
+}
+
+/// One side of the fan around `v(start)`: from the corner at the vertex in one face, leave through
+/// the edge opposite `exit` (`p(c)` or `n(c)`), find the corner at the vertex in the face across,
+/// and go on through its other edge at the vertex. With the pair consistent, leaving through the
+/// edge opposite `p(c)` arrives at `p(o)`; an inconsistent pair mirrors that. So no step re-reads
+/// `V`. A fan is a cycle or a path of corners, so a walk ends at a border, at a non-manifold edge
+/// or back at its start. Every corner passed is marked in `visited` (whose bit 0 is corner `lo`;
+/// corners past its end belong to another run) and taken into `lowest`.
+#[inline(always)]
+fn walk_side(
+    table: &CornerTable,
+    start: u32,
+    exit_is_p: bool,
+    lo: u32,
+    visited: &mut [u64],
+    lowest: &mut u32,
+) -> FanEnd {
+    let o = table.opposites();
+    let mut exit_is_p = exit_is_p;
+    let mut exit = if exit_is_p {
+        CornerTable::p(start)
+    } else {
+        CornerTable::n(start)
+    };
+    let mut least = *lowest;
+    // A walk passes each corner at most once; the bound only guards against a table that is not
+    // one (a walk that never came back would otherwise not end).
+    for _ in 0..=o.len() {
+        let across = o[exit as usize];
+        if across == exit {
+            *lowest = least;
+            return FanEnd::Border(exit);
+        }
+        if across == NON_MANIFOLD {
+            *lowest = least;
+            return FanEnd::NonManifold;
+        }
+        exit_is_p ^= !table.is_consistent(exit);
+        let (p, n) = (CornerTable::p(across), CornerTable::n(across));
+        let (d, next) = if exit_is_p { (p, n) } else { (n, p) };
+        debug_assert_eq!(table.v(d), table.v(start));
+        if d == start {
+            *lowest = least;
+            return FanEnd::Closed;
+        }
+        least = least.min(d);
+        let i = d.wrapping_sub(lo);
+        if let Some(word) = visited.get_mut(i as usize / 64) {
+            *word |= 1 << (i % 64);
+        }
+        exit = next;
+    }
+    debug_assert!(false, "a fan walk from corner {start} did not end");
+    *lowest = least;
+    FanEnd::Closed
 }
 
 /// Step 4 of the analysis: each component's vertices and holes from its fans, then whether it is
