@@ -209,6 +209,8 @@ fn bench_bolts() {
 }
 
 fn main() {
+    // What the program does at its start (src/main.rs).
+    meshvet::pages::keep_freed_memory();
     let only: Option<usize> = std::env::args().skip(1).find_map(|a| a.parse().ok());
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)

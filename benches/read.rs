@@ -78,6 +78,8 @@ const CASES: [Case; 6] = [
 ];
 
 fn main() {
+    // What the program does at its start (src/main.rs).
+    meshvet::pages::keep_freed_memory();
     let words: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with('-'))

@@ -33,6 +33,7 @@ static ALLOCATOR: meshvet::pages::HugePages = meshvet::pages::HugePages;
 const USAGE: u8 = 2;
 
 fn main() -> ExitCode {
+    meshvet::pages::keep_freed_memory();
     // The formats come from the library's registry, so `--help` lists what this build reads.
     let formats = format!(
         "Reads {} (any case).",

@@ -8,6 +8,9 @@
 //! often. Machines whose kernel has transparent huge pages off ignore the advice; so do other
 //! systems, where this is the system allocator unchanged. Small blocks are untouched. The advice
 //! changes only how memory is backed, never what a program reads from it.
+//!
+//! [`keep_freed_memory`] is the other half: freed blocks stay with the process for the next
+//! allocation instead of going back to the kernel, which would have to fault and zero them again.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 
@@ -68,6 +71,31 @@ unsafe impl GlobalAlloc for HugePages {
         let q = unsafe { System.realloc(p, layout, new_size) };
         Self::advise(q, new_size);
         q
+    }
+}
+
+/// The largest block the system allocator keeps in its heaps rather than mapping on its own
+/// (glibc's ceiling for `M_MMAP_THRESHOLD` on 64-bit systems: half of a thread heap's 64 MiB).
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+const KEPT_BLOCK: libc::c_int = 32 << 20;
+
+/// Asks the system allocator to keep memory the process frees, for its next allocations: blocks
+/// up to [`KEPT_BLOCK`] come from its heaps instead of a mapping each (unmapped when freed), and
+/// the heaps are never trimmed. Call it once, at the start.
+///
+/// A fresh page costs a fault and the kernel's zeroing, which on the project's virtual machine is
+/// slow (a third of the analysis of a 1M-face mesh, in `perf`). A scan frees and allocates arrays
+/// of the same sizes file after file and stage after stage: with glibc's defaults they went back
+/// to the kernel and were faulted in again (a scan of 217 corpus files: 18,100-18,600 page faults
+/// with the defaults, 8,700-8,900 keeping them; peak memory the same). Peak memory is what it was;
+/// the process simply does not give memory back before it exits, as a batch tool need not.
+/// Elsewhere than glibc this does nothing.
+pub fn keep_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `mallopt` only changes glibc's thresholds; it is called before any thread starts.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, KEPT_BLOCK);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, libc::c_int::MAX);
     }
 }
 
