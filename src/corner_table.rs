@@ -456,11 +456,6 @@ impl Bounds {
         &self.0[..self.0.len() - 1]
     }
 
-    /// The number of keys counted (after [`Bounds::open`]).
-    pub(crate) fn total(&self) -> usize {
-        self.0[self.0.len() - 1] as usize
-    }
-
     /// [`Bounds::close`], owned.
     pub(crate) fn into_bounds(mut self) -> Vec<u32> {
         self.0.pop();

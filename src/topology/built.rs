@@ -9,12 +9,13 @@
 //! analysis of a shuffled 1M-face torus several times faster.
 //!
 //! Three passes over the faces do it all. The first welds each face's corners (keeping the welded
-//! face), sorts it into invalid, degenerate or kept, and counts the kept ones by lowest vertex. The
-//! second gathers the welded kept faces in that order; a sweep over them then marks their vertices
-//! as used (in table order, so close in memory). The third buckets each face's lowest corner by
-//! its middle vertex, which is everything the table's pairing reads (no sort of corners). Each
-//! input face's corners are looked up in the weld once: on a shuffled mesh those lookups are cache
-//! misses.
+//! face), sorts it into invalid, degenerate or kept, and sorts the kept ones by lowest vertex (a
+//! radix sort of the welded faces themselves, [`by_lowest_vertex`], so no pass writes or reads
+//! faces at random). The second joins the runs of several threads in that order; a sweep over the
+//! faces then marks their vertices as used (in table order, so close in memory). The third buckets
+//! each face's lowest corner by its middle vertex, which is everything the table's pairing reads
+//! (no sort of corners). Each input face's corners are looked up in the weld once: on a shuffled
+//! mesh those lookups are cache misses.
 //!
 //! Vertex numbers matter for the same reason: a triangle soup (STL) numbers its welded vertices by
 //! first appearance, so one whose facets come in random order has them at random, and the build
@@ -29,7 +30,7 @@ use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use rayon::prelude::*;
 
 use super::Options;
-use crate::corner_table::{Apexes, Bounds, CornerTable};
+use crate::corner_table::{Apexes, CornerTable};
 use crate::geometry::{dist2, morton, norm2, normal};
 use crate::mesh::Mesh;
 use crate::weld::{weld, weld_parallel, Welded, INVALID};
@@ -220,51 +221,35 @@ fn group(
     let run = faces.len().div_ceil(threads).max(1);
 
     // Pass 1, per run of input faces: each face welded and sorted into invalid, degenerate or
-    // kept, and the kept ones' indices in the run sorted by lowest vertex (a counting sort).
+    // kept, and the kept ones, with their indices in the run, sorted by lowest vertex.
     let referenced: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
     let sort_run = |run_faces: &[[u32; 3]]| {
         let mut left = LeftOut::default();
-        let mut lowest = Bounds::new(n);
-        let mut welded_run = Vec::with_capacity(run_faces.len());
-        for t in run_faces {
+        let mut kept = Vec::with_capacity(run_faces.len());
+        for (i, t) in run_faces.iter().enumerate() {
             let w = welded(t);
-            // A kept face's vertices are marked after pass 2, in table order (close in memory).
-            let kind = FaceKind::of(&w);
-            if kind != FaceKind::Table {
-                for &x in w.iter().filter(|&&x| x != INVALID) {
-                    referenced[x as usize].store(true, Relaxed);
+            match FaceKind::of(&w) {
+                FaceKind::Table => kept.push([w[0], w[1], w[2], i as u32]),
+                kind => {
+                    // A kept face's vertices are marked after pass 2, in table order (close in
+                    // memory).
+                    for &x in w.iter().filter(|&&x| x != INVALID) {
+                        referenced[x as usize].store(true, Relaxed);
+                    }
+                    if kind == FaceKind::Invalid {
+                        left.invalid_faces += 1;
+                    } else {
+                        left.degenerate_faces += 1;
+                    }
                 }
             }
-            let low = match kind {
-                FaceKind::Invalid => {
-                    left.invalid_faces += 1;
-                    NOT_KEPT
-                }
-                FaceKind::Degenerate => {
-                    left.degenerate_faces += 1;
-                    NOT_KEPT
-                }
-                FaceKind::Table => {
-                    let low = w[0].min(w[1]).min(w[2]);
-                    lowest.count(low as usize);
-                    low
-                }
-            };
-            welded_run.push(if low == NOT_KEPT { [NOT_KEPT; 3] } else { w });
         }
-        lowest.open();
-        let mut order = vec![0u32; lowest.total()];
-        for (i, w) in welded_run.iter().enumerate() {
-            if w[0] != NOT_KEPT {
-                let low = w[0].min(w[1]).min(w[2]);
-                order[lowest.slot(low as usize)] = i as u32;
-            }
-        }
+        let (faces, index, bounds) = by_lowest_vertex(kept, n);
         Sorted {
             left,
-            order,
-            bounds: lowest.into_bounds(),
-            welded: welded_run,
+            faces,
+            index,
+            bounds,
         }
     };
     let mut runs: Vec<Sorted> = if parallel {
@@ -278,18 +263,17 @@ fn group(
         left.degenerate_faces += r.left.degenerate_faces;
     }
 
-    // Pass 2, in table order: each welded face read from its run (gathers, written in order,
-    // runs one after the other within a vertex), and its index replaced by the caller's name.
+    // Pass 2, in table order: the runs' sorted faces joined vertex by vertex (runs one after the
+    // other within a vertex), each index replaced by the caller's name. One run is in that order
+    // already.
     let (table_faces, names, lowest) = if runs.len() == 1 {
         let Sorted {
-            order: mut names,
+            faces: table_faces,
+            index: mut names,
             bounds,
-            welded: welded_run,
             ..
         } = runs.pop().expect("one run");
-        let mut table_faces = Vec::with_capacity(names.len());
         for i in &mut names {
-            table_faces.push(welded_run[*i as usize]);
             *i = name(*i as usize);
         }
         (table_faces, names, bounds)
@@ -315,9 +299,9 @@ fn group(
             let mut slot = 0;
             for x in vertices {
                 for (k, r) in runs.iter().enumerate() {
-                    for &i in &r.order[r.bounds[x] as usize..r.bounds[x + 1] as usize] {
-                        f[slot] = r.welded[i as usize];
-                        m[slot] = name(k * run + i as usize);
+                    for j in r.bounds[x] as usize..r.bounds[x + 1] as usize {
+                        f[slot] = r.faces[j];
+                        m[slot] = name(k * run + r.index[j] as usize);
                         slot += 1;
                     }
                 }
@@ -357,22 +341,78 @@ fn group(
     (table, names, left)
 }
 
-/// A face of the input that is not in the table, among pass 1's lowest vertices.
-const NOT_KEPT: u32 = u32::MAX;
-
 /// How many faces a piece of the parallel gather covers, at least.
 const PIECE: usize = 1 << 16;
 
-/// A run of input faces after pass 1: the kept faces' indices in the run by lowest vertex, vertex
-/// `x`'s at `order[bounds[x]..bounds[x + 1]]`.
+/// A run of input faces after pass 1: its kept faces, welded, by lowest vertex (in input order
+/// within a vertex), vertex `x`'s at `bounds[x]..bounds[x + 1]`.
 struct Sorted {
     left: LeftOut,
-    /// Indices into the run, by lowest vertex.
-    order: Vec<u32>,
+    faces: Vec<[u32; 3]>,
+    /// Each kept face's index in the run.
+    index: Vec<u32>,
     bounds: Vec<u32>,
-    /// Each face of the run, welded; `[NOT_KEPT; 3]` for one left out.
-    welded: Vec<[u32; 3]>,
 }
+
+/// Sorts `kept` faces (`[a, b, c, index]`, vertices below `n`) by their lowest vertex, keeping
+/// their order within a vertex: the faces, their indices, and each vertex's bounds (`bounds[x]..
+/// bounds[x + 1]`, `n + 1` of them).
+///
+/// A radix sort of the faces themselves, in as few passes of at most [`DIGIT_BITS`] bits as the
+/// vertex numbers need (two up to 4M vertices), each pass reading in order and writing to one
+/// place per digit; a counting sort over all vertices instead wrote each face to a random place,
+/// and the faces then had to be gathered in that order (on a shuffled 1M-face mesh both were
+/// cache misses at nearly every face).
+fn by_lowest_vertex(kept: Vec<[u32; 4]>, n: usize) -> (Vec<[u32; 3]>, Vec<u32>, Vec<u32>) {
+    let low = |r: &[u32; 4]| r[0].min(r[1]).min(r[2]);
+    let bits = usize::BITS - n.saturating_sub(1).leading_zeros();
+    let passes = bits.div_ceil(DIGIT_BITS).max(1);
+    let width = bits.div_ceil(passes);
+    let mask = (1usize << width) - 1;
+    let digit = |r: &[u32; 4], pass: u32| (low(r) as usize >> (pass * width)) & mask;
+    // Each pass's first slot of each digit.
+    let mut starts = vec![vec![0u32; mask + 2]; passes as usize];
+    for r in &kept {
+        for (pass, start) in starts.iter_mut().enumerate() {
+            start[digit(r, pass as u32) + 1] += 1;
+        }
+    }
+    for start in &mut starts {
+        for d in 1..start.len() {
+            start[d] += start[d - 1];
+        }
+    }
+    let mut from = kept;
+    for pass in 0..passes - 1 {
+        let mut to = vec![[0u32; 4]; from.len()];
+        let start = &mut starts[pass as usize];
+        for r in &from {
+            let slot = &mut start[digit(r, pass)];
+            to[*slot as usize] = *r;
+            *slot += 1;
+        }
+        from = to;
+    }
+    let (mut faces, mut index) = (vec![[0u32; 3]; from.len()], vec![0u32; from.len()]);
+    let start = &mut starts[passes as usize - 1];
+    for r in &from {
+        let slot = &mut start[digit(r, passes - 1)];
+        faces[*slot as usize] = [r[0], r[1], r[2]];
+        index[*slot as usize] = r[3];
+        *slot += 1;
+    }
+    drop(from);
+    let mut bounds = Vec::with_capacity(n + 1);
+    for (j, f) in faces.iter().enumerate() {
+        let x = f[0].min(f[1]).min(f[2]) as usize;
+        bounds.resize(x + 1, j as u32);
+    }
+    bounds.resize(n + 1, faces.len() as u32);
+    (faces, index, bounds)
+}
+
+/// The most bits of a vertex number one pass of [`by_lowest_vertex`] sorts by.
+const DIGIT_BITS: u32 = 11;
 
 /// Cuts vertices `0..n` (with `bounds[x]..bounds[x + 1]` the faces of `x`) into ranges of whole
 /// vertices holding at least `size` faces each (the last may hold fewer).
@@ -443,6 +483,42 @@ mod tests {
                 pool.install(|| group(&faces, |t| *t, |i| 10 + i as u32, 5, parallel));
             assert_eq!(names, [11, 12, 10]);
             assert_eq!(table.triangles(), [[4, 0, 3], [3, 1, 2], [2, 3, 4]]);
+        }
+    }
+
+    /// The radix sort by lowest vertex is the stable sort by it, with one, two and three passes
+    /// (vertex numbers of up to 10, 20 and 23 bits), and its bounds are each vertex's range.
+    #[test]
+    fn faces_sort_by_lowest_vertex_stably() {
+        let mut bits = crate::geometry::xorshift(0x2c1b_9e37_79b9_7f4a);
+        for n in [1usize, 3, 1000, 700_000, 5_000_000] {
+            // Few distinct lowest vertices, so that ties are common.
+            let hubs: Vec<u32> = (0..7).map(|_| (bits() % n as u64) as u32).collect();
+            let kept: Vec<[u32; 4]> = (0..3000u32)
+                .map(|i| {
+                    let hub = hubs[(bits() % 7) as usize];
+                    let other = |r: u64| hub.max((r % n as u64) as u32);
+                    [other(bits()), hub, other(bits()), i]
+                })
+                .collect();
+            let low = |r: &[u32; 4]| r[0].min(r[1]).min(r[2]);
+            let mut expected = kept.clone();
+            expected.sort_by_key(low);
+            let (faces, index, bounds) = by_lowest_vertex(kept, n);
+            let got: Vec<[u32; 4]> = faces
+                .iter()
+                .zip(&index)
+                .map(|(f, &i)| [f[0], f[1], f[2], i])
+                .collect();
+            assert_eq!(got, expected, "{n} vertices");
+            assert_eq!(bounds.len(), n + 1);
+            for x in 0..n {
+                let range = bounds[x] as usize..bounds[x + 1] as usize;
+                assert!(faces[range]
+                    .iter()
+                    .all(|f| f.iter().min() == Some(&(x as u32))));
+            }
+            assert_eq!(bounds[n] as usize, faces.len());
         }
     }
 
