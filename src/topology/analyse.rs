@@ -636,7 +636,9 @@ fn walk_fans(
     // it cannot choose the next border edge, so the lone ends of one component at one vertex are one
     // loop; lone ends of different components meeting at a vertex stay apart (a component's holes
     // are its own).
-    let border: Vec<u32> = if shared {
+    let border: Vec<u32> = if table.border_edge_count() == 0 {
+        Vec::new()
+    } else if shared {
         (0..nc as u32)
             .into_par_iter()
             .filter(|&c| table.is_border(c))
@@ -786,7 +788,7 @@ fn walk_side(
     let mut least = *lowest;
     // A walk passes each corner at most once; the bound only guards against a table that is not
     // one (a walk that never came back would otherwise not end).
-    for _ in 0..=o.len() {
+    for _ in 0..o.len() + 1 {
         let across = o[exit as usize];
         if across == exit {
             *lowest = least;
@@ -797,7 +799,15 @@ fn walk_side(
             return FanEnd::NonManifold;
         }
         exit_is_p ^= !table.is_consistent(exit);
-        let (p, n) = (CornerTable::p(across), CornerTable::n(across));
+        // The face's other two corners, `p(across)` and `n(across)`, from one division: the
+        // places of a face's three corners add up to 3.
+        let first = across / 3 * 3;
+        let p = if across == first {
+            across + 2
+        } else {
+            across - 1
+        };
+        let n = first + 3 - (across - first) - (p - first);
         let (d, next) = if exit_is_p { (p, n) } else { (n, p) };
         debug_assert_eq!(table.v(d), table.v(start));
         if d == start {
