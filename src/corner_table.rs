@@ -568,12 +568,18 @@ fn pair(
         let mut bucket: Vec<u64> = Vec::new();
         for x in vertices {
             bucket.clear();
-            for i in groups.lowest[x] as usize..groups.lowest[x + 1] as usize {
-                let f = i;
+            let lowest = x as u32;
+            for f in groups.lowest[x] as usize..groups.lowest[x + 1] as usize {
                 let t = &triangles[f];
                 // With `x = t[k]` the lowest vertex: corner k + 1 faces the edge from t[k + 2]
                 // down to x, corner k + 2 the edge from x up to t[k + 1].
-                let (_, k, _) = lowest_and_middle(t);
+                let k = if t[0] == lowest {
+                    0
+                } else if t[1] == lowest {
+                    1
+                } else {
+                    2
+                };
                 let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
                 let c = 3 * f as u32;
                 bucket.push((u64::from(t[k2]) << 33) | u64::from(c + k1 as u32));
