@@ -66,7 +66,12 @@ pub fn analyse_keeping(mesh: &Mesh, options: &Options) -> (Analysis, Built) {
         // in cache (in input order a shuffled mesh misses it for nearly every corner).
         let (mut zero_area, mut area) = (0, 0.0);
         for t in table.triangles() {
-            let [p, q, r] = t.map(|i| points[i as usize]);
+            // Written out: `array::map` is not inlined here.
+            let [p, q, r] = [
+                points[t[0] as usize],
+                points[t[1] as usize],
+                points[t[2] as usize],
+            ];
             let cross2 = cross2(p, q, r);
             if cross2 <= zero_cross2 {
                 zero_area += 1;
@@ -941,7 +946,10 @@ fn shells(
         let s = shell_of[component_of(t)];
         if s != UNSET {
             let s = s as usize;
-            let [a, b, c] = triangles[t as usize].map(|i| sub(faces.points[i as usize], mean[s]));
+            // Written out: `array::map` is not inlined here.
+            let [i, j, k] = triangles[t as usize];
+            let point = |i: u32| sub(faces.points[i as usize], mean[s]);
+            let (a, b, c) = (point(i), point(j), point(k));
             let term = dot(a, cross(b, c));
             flipped[s] += usize::from(flip[t as usize]);
             six_volume[s] += if flip[t as usize] { -term } else { term };
