@@ -112,7 +112,9 @@ pub(crate) fn cross2(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
 /// The welded corners of an input face (`INVALID` for an index the weld does not know).
 #[inline]
 pub(crate) fn welded_face(map: &[u32], t: &[u32; 3]) -> [u32; 3] {
-    t.map(|i| map.get(i as usize).copied().unwrap_or(INVALID))
+    // Written out: `array::map` is not always inlined.
+    let at = |i: u32| map.get(i as usize).copied().unwrap_or(INVALID);
+    [at(t[0]), at(t[1]), at(t[2])]
 }
 
 /// Welds `mesh` and builds the table of the faces that can be in one.
@@ -382,32 +384,32 @@ fn by_lowest_vertex(kept: Vec<[u32; 4]>, n: usize) -> (Vec<[u32; 3]>, Vec<u32>, 
             start[d] += start[d - 1];
         }
     }
+    // Each pass scatters the records from one array to the other; the last lands in `kept`'s
+    // own memory when the passes are even.
     let mut from = kept;
-    for pass in 0..passes - 1 {
-        let mut to = vec![[0u32; 4]; from.len()];
-        let start = &mut starts[pass as usize];
+    let mut to = vec![[0u32; 4]; from.len()];
+    for (pass, start) in starts.iter_mut().enumerate() {
         for r in &from {
-            let slot = &mut start[digit(r, pass)];
+            let slot = &mut start[digit(r, pass as u32)];
             to[*slot as usize] = *r;
             *slot += 1;
         }
-        from = to;
+        std::mem::swap(&mut from, &mut to);
     }
-    let (mut faces, mut index) = (vec![[0u32; 3]; from.len()], vec![0u32; from.len()]);
-    let start = &mut starts[passes as usize - 1];
-    for r in &from {
-        let slot = &mut start[digit(r, passes - 1)];
-        faces[*slot as usize] = [r[0], r[1], r[2]];
-        index[*slot as usize] = r[3];
-        *slot += 1;
-    }
+    drop(to);
+    let faces: Vec<[u32; 3]> = from.iter().map(|r| [r[0], r[1], r[2]]).collect();
+    let index: Vec<u32> = from.iter().map(|r| r[3]).collect();
     drop(from);
-    let mut bounds = Vec::with_capacity(n + 1);
+    let mut bounds = vec![0u32; n + 1];
+    let mut next = 0;
     for (j, f) in faces.iter().enumerate() {
         let x = f[0].min(f[1]).min(f[2]) as usize;
-        bounds.resize(x + 1, j as u32);
+        if x >= next {
+            bounds[next..=x].fill(j as u32);
+            next = x + 1;
+        }
     }
-    bounds.resize(n + 1, faces.len() as u32);
+    bounds[next..].fill(faces.len() as u32);
     (faces, index, bounds)
 }
 
