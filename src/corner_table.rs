@@ -569,8 +569,9 @@ fn pair(
         for x in vertices {
             bucket.clear();
             let lowest = x as u32;
-            for f in groups.lowest[x] as usize..groups.lowest[x + 1] as usize {
-                let t = &triangles[f];
+            let first = groups.lowest[x] as usize;
+            let run = &triangles[first..groups.lowest[x + 1] as usize];
+            for (f, t) in (first..).zip(run) {
                 // With `x = t[k]` the lowest vertex: corner k + 1 faces the edge from t[k + 2]
                 // down to x, corner k + 2 the edge from x up to t[k + 1].
                 let k = if t[0] == lowest {

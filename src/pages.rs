@@ -80,15 +80,17 @@ unsafe impl GlobalAlloc for HugePages {
 const KEPT_BLOCK: libc::c_int = 32 << 20;
 
 /// Asks the system allocator to keep memory the process frees, for its next allocations: blocks
-/// up to [`KEPT_BLOCK`] come from its heaps instead of a mapping each (unmapped when freed), and
+/// up to 32 MiB come from its heaps instead of a mapping each (unmapped when freed), and
 /// the heaps are never trimmed. Call it once, at the start.
 ///
 /// A fresh page costs a fault and the kernel's zeroing, which on the project's virtual machine is
-/// slow (a third of the analysis of a 1M-face mesh, in `perf`). A scan frees and allocates arrays
-/// of the same sizes file after file and stage after stage: with glibc's defaults they went back
-/// to the kernel and were faulted in again (a scan of 217 corpus files: 18,100-18,600 page faults
-/// with the defaults, 8,700-8,900 keeping them; peak memory the same). Peak memory is what it was;
-/// the process simply does not give memory back before it exits, as a batch tool need not.
+/// slow (44% of `perf`'s samples of a scan of a 1M-face PLY without the search). A scan frees and
+/// allocates arrays of the same sizes file after file and stage after stage: with glibc's defaults
+/// they went back to the kernel and were faulted in again (a scan of 217 corpus files: 18,100-18,600
+/// page faults with the defaults, 8,700-8,900 keeping them; peak memory the same). The process
+/// simply does not give memory back before it exits, as a batch tool need not. Blocks above
+/// 32 MiB are still mapped and unmapped one by one (keeping a few of them was tried: a
+/// scan of a 5M-face mesh then held 30% more memory and faulted no less).
 /// Elsewhere than glibc this does nothing.
 pub fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]

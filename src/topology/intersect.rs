@@ -47,8 +47,8 @@ pub struct Surface<'a> {
     pub table: &'a CornerTable,
     /// The component of table face `t`.
     pub component: &'a (dyn Fn(u32) -> u32 + Sync),
-    /// Faces whose [`cross2`] is at most this are left out (zero-area faces; see
-    /// [`zero_area_bound`]).
+    /// Faces whose `cross2` (four times the squared area) is at most this are left out (zero-area
+    /// faces; see `topology::built::zero_area_bound`).
     pub zero_bound: f64,
     /// The number of table face `t` in the findings (pairs, involved faces), for instance its input
     /// face; `None`: its table number. The kept pairs are the lowest in this numbering.
