@@ -30,10 +30,11 @@ use crate::geometry::bounding_box;
 use crate::geometry::exact::segments_touch;
 use crate::geometry::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
-use crate::topology::analyse::{find, is_flat, union};
+use crate::topology::analyse::is_flat;
 use crate::topology::built::{table_of, welded_face, zero_area_bound, FaceKind};
 use crate::topology::intersect::{intersect_table, Search};
 use crate::topology::nesting::{depths, ShellGeometry};
+use crate::topology::sets::{find, union};
 use crate::topology::Built;
 use crate::weld::{weld, INVALID};
 

@@ -19,6 +19,7 @@
 use super::built::{build, cross2, on_every_thread, zero_area_bound, Built};
 use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
+use super::sets::{find, union};
 use super::{Analysis, Component, Options, Role, Shell};
 use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
@@ -468,24 +469,6 @@ fn join_patches(table: &CornerTable, patches: &Patches, source: &[u32]) -> Vec<u
     (0..count as u32)
         .map(|p| number[find(&mut parent, p) as usize])
         .collect()
-}
-
-/// Union-find over `u32` ids (path halving): the root of `x`'s set.
-pub(crate) fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        let up = parent[parent[x as usize] as usize];
-        parent[x as usize] = up;
-        x = up;
-    }
-    x
-}
-
-/// Joins two sets, keeping the smaller root (so roots stay the lowest member).
-pub(crate) fn union(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        parent[ra.max(rb) as usize] = ra.min(rb);
-    }
 }
 
 /// Extra copies of faces with the same three vertices. Copies of `{x < y < z}` all bound the edge

@@ -8,6 +8,7 @@ pub(crate) mod built;
 pub mod intersect;
 pub(crate) mod nesting;
 mod places;
+pub(crate) mod sets;
 
 pub use analyse::{analyse, analyse_keeping};
 pub use built::{build, Built, LeftOut};

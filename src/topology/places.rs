@@ -16,7 +16,7 @@
 //!   lowest input face, exactly as [`Analysis::components`]; a face is inside-out when its component's
 //!   shell is.
 
-use super::analyse::{find, union};
+use super::sets::{find, union};
 use super::{Analysis, Built};
 use crate::corner_table::CornerTable;
 

@@ -27,7 +27,7 @@
 //! byte a face, and a mesh with no joins allocates nothing.
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
-use crate::topology::analyse::{find, union};
+use crate::topology::sets::{find, union};
 
 use super::meet::Point;
 use super::patches::Patches;
