@@ -927,17 +927,16 @@ fn shells(
     let triangles = faces.table.triangles();
     let mut flipped = vec![0usize; shells.len()];
     let mut six_volume = vec![0.0f64; shells.len()];
-    for t in 0..nt {
+    for ((t, &[i, j, k]), &flip) in (0..nt).zip(triangles).zip(flip) {
         let s = shell_of[component_of(t)];
         if s != UNSET {
             let s = s as usize;
             // Written out: `array::map` is not inlined here.
-            let [i, j, k] = triangles[t as usize];
             let point = |i: u32| sub(faces.points[i as usize], mean[s]);
             let (a, b, c) = (point(i), point(j), point(k));
             let term = dot(a, cross(b, c));
-            flipped[s] += usize::from(flip[t as usize]);
-            six_volume[s] += if flip[t as usize] { -term } else { term };
+            flipped[s] += usize::from(flip);
+            six_volume[s] += if flip { -term } else { term };
         }
     }
     let tied: Vec<bool> = shells
