@@ -719,7 +719,7 @@ fn fans_of_run(
             break;
         }
         next = i + 1;
-        test_and_set(visited, i as u32);
+        set_bit(visited, i as u32);
         let c = (lo + i) as u32;
         let mut lowest = c;
         let ahead = walk_side(table, c, true, lo32, visited, &mut lowest);
@@ -856,12 +856,9 @@ fn bump(n: &AtomicU32, shared: bool) -> u32 {
     }
 }
 
-/// Sets bit `i`, returning whether it was set before.
-fn test_and_set(bits: &mut [u64], i: u32) -> bool {
-    let (word, bit) = (i as usize / 64, 1u64 << (i % 64));
-    let was = bits[word] & bit != 0;
-    bits[word] |= bit;
-    was
+/// Sets bit `i`.
+fn set_bit(bits: &mut [u64], i: u32) {
+    bits[i as usize / 64] |= 1 << (i % 64);
 }
 
 /// The shells (closed, manifold components) with volume and bounding box, and the shell of each

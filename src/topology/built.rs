@@ -397,19 +397,18 @@ fn by_lowest_vertex(kept: Vec<[u32; 4]>, n: usize) -> (Vec<[u32; 3]>, Vec<u32>, 
         std::mem::swap(&mut from, &mut to);
     }
     drop(to);
-    let faces: Vec<[u32; 3]> = from.iter().map(|r| [r[0], r[1], r[2]]).collect();
-    let index: Vec<u32> = from.iter().map(|r| r[3]).collect();
-    drop(from);
     let mut bounds = vec![0u32; n + 1];
     let mut next = 0;
-    for (j, f) in faces.iter().enumerate() {
-        let x = f[0].min(f[1]).min(f[2]) as usize;
+    for (j, r) in from.iter().enumerate() {
+        let x = low(r) as usize;
         if x >= next {
             bounds[next..=x].fill(j as u32);
             next = x + 1;
         }
     }
-    bounds[next..].fill(faces.len() as u32);
+    bounds[next..].fill(from.len() as u32);
+    let faces: Vec<[u32; 3]> = from.iter().map(|r| [r[0], r[1], r[2]]).collect();
+    let index: Vec<u32> = from.iter().map(|r| r[3]).collect();
     (faces, index, bounds)
 }
 
