@@ -2,48 +2,20 @@
 //! that walks over them find their neighbours close in memory. The face boxes of the search for
 //! faces that meet and the welded vertices of a scattered soup are put in this order.
 
-use std::sync::atomic::AtomicU64;
-use std::sync::atomic::Ordering::Relaxed;
-
 use rayon::prelude::*;
-
-use crate::topology::built::on_every_thread;
 
 /// The order of `n` points (`centre(i)` the i-th) along a Morton curve over their bounding box,
 /// 1024 cells a side; points in one cell keep their order.
 pub(crate) fn order(n: usize, centre: impl Fn(usize) -> [f32; 3] + Sync) -> Vec<u32> {
-    // A big mesh's points in one run per thread (the sort's passes were a tenth of a 5M-face
-    // analysis on two threads, all of it on one while the other waited).
-    let parts = if on_every_thread(n) {
-        rayon::current_num_threads()
-    } else {
-        1
-    };
-    let size = n.div_ceil(parts).max(1);
-    // Minima and maxima do not depend on the order they are taken in.
-    let (lo, hi) = (0..parts)
-        .into_par_iter()
-        .map(|j| {
-            let mut lo = [f32::INFINITY; 3];
-            let mut hi = [f32::NEG_INFINITY; 3];
-            for i in j * size..((j + 1) * size).min(n) {
-                let c = centre(i);
-                for k in 0..3 {
-                    lo[k] = lo[k].min(c[k]);
-                    hi[k] = hi[k].max(c[k]);
-                }
-            }
-            (lo, hi)
-        })
-        .reduce(
-            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-            |(l1, h1), (l2, h2)| {
-                (
-                    std::array::from_fn(|k| l1[k].min(l2[k])),
-                    std::array::from_fn(|k| h1[k].max(h2[k])),
-                )
-            },
-        );
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for i in 0..n {
+        let c = centre(i);
+        for k in 0..3 {
+            lo[k] = lo[k].min(c[k]);
+            hi[k] = hi[k].max(c[k]);
+        }
+    }
     let scale: [f32; 3] = std::array::from_fn(|k| {
         let extent = hi[k] - lo[k];
         if extent > 0.0 && extent.is_finite() {
@@ -66,11 +38,7 @@ pub(crate) fn order(n: usize, centre: impl Fn(usize) -> [f32; 3] + Sync) -> Vec<
             u64::from(code) << 32 | i as u64
         })
         .collect();
-    if parts > 1 {
-        radix_sort_runs(&mut keys, size);
-    } else {
-        radix_sort_high(&mut keys);
-    }
+    radix_sort_high(&mut keys);
     keys.iter().map(|&k| k as u32).collect()
 }
 
@@ -106,66 +74,17 @@ fn radix_sort_high(keys: &mut Vec<u64>) {
     }
 }
 
-/// [`radix_sort_high`] in runs of `size` keys on the current pool: each run counts its digits,
-/// then writes its keys to slots of its own (after the same digit's keys of the runs before it),
-/// so the order is the one-run sort's. (On one thread this costs more than the plain sort: the
-/// slots are atomics, written by plain stores, and the runs go through the pool.)
-fn radix_sort_runs(keys: &mut Vec<u64>, size: usize) {
-    let size = size.max(1);
-    // Slots written from several threads at once, each by one run only.
-    let mut from: Vec<AtomicU64> = std::mem::take(keys)
-        .into_iter()
-        .map(AtomicU64::new)
-        .collect();
-    let mut to: Vec<AtomicU64> = from
-        .par_chunks(size)
-        .flat_map_iter(|run| run.iter().map(|_| AtomicU64::new(0)))
-        .collect();
-    for pass in 0..3 {
-        let shift = 32 + 10 * pass;
-        let digit = |k: u64| ((k >> shift) & 0x3ff) as usize;
-        let mut starts: Vec<[usize; 1024]> = from
-            .par_chunks(size)
-            .map(|run| {
-                let mut count = [0usize; 1024];
-                for k in run {
-                    count[digit(k.load(Relaxed))] += 1;
-                }
-                count
-            })
-            .collect();
-        let mut next = 0;
-        for d in 0..1024 {
-            for start in &mut starts {
-                (start[d], next) = (next, next + start[d]);
-            }
-        }
-        from.par_chunks(size)
-            .zip(starts)
-            .for_each(|(run, mut start)| {
-                for k in run {
-                    let k = k.load(Relaxed);
-                    let slot = &mut start[digit(k)];
-                    to[*slot].store(k, Relaxed);
-                    *slot += 1;
-                }
-            });
-        std::mem::swap(&mut from, &mut to);
-    }
-    *keys = from.into_iter().map(AtomicU64::into_inner).collect();
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The radix sort is a stable sort by the code in the high bits, in one run or several: random
-    /// codes with many ties (few distinct ones per digit), the index below, as `order` makes them.
+    /// The radix sort is a stable sort by the code in the high bits: random codes with many ties
+    /// (few distinct ones per digit), the index below, as `order` makes them.
     #[test]
     fn radix_sort_is_stable_by_code() {
         let mut bits = crate::geometry::xorshift(0x51ed_2701_9b3a_c4e5);
-        for size in [0usize, 1, 7, 1000, 70_000] {
-            let keys: Vec<u64> = (0..size as u64)
+        for size in [0, 1, 7, 1000, 70_000] {
+            let mut keys: Vec<u64> = (0..size as u64)
                 .map(|i| {
                     let r = bits();
                     // Each ten-bit digit takes one of four values, so ties are common.
@@ -175,14 +94,8 @@ mod tests {
                 .collect();
             let mut expected = keys.clone();
             expected.sort_by_key(|k| k >> 32);
-            let mut sorted = keys.clone();
-            radix_sort_high(&mut sorted);
-            assert_eq!(sorted, expected, "{size} keys");
-            for run in [size.max(1), size.div_ceil(2), size.div_ceil(3), 1000] {
-                let mut sorted = keys.clone();
-                radix_sort_runs(&mut sorted, run);
-                assert_eq!(sorted, expected, "{size} keys in runs of {run}");
-            }
+            radix_sort_high(&mut keys);
+            assert_eq!(keys, expected, "{size} keys");
         }
     }
 }

@@ -35,7 +35,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use rayon::prelude::*;
 
-use super::built::{cross2, on_every_thread, zero_area_bound, Built};
+use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
 use crate::geometry::morton;
 use tree::{Placed, Tree, Visit};
@@ -178,68 +178,27 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let regions = regions::flat_regions(points, surface.table, &stars.turns, &stars.along);
 
     // The table faces kept and their box centres, in table order (the analysis sorts faces by
-    // vertex, so this reads points nearly in order): one run of faces per thread on a big mesh
-    // (on one thread this pass was a sixth of a 5M-face analysis on two), one run otherwise. The
-    // runs are not joined, which would copy them on one thread; kept face `i` counts across them.
-    // The boxes are not kept: each is computed once more, into the tree, which costs less than
+    // vertex, so this reads points nearly in order), in one loop on one thread: runs gathered on
+    // every thread and joined were no quicker on two threads (the loop is bound by memory). The
+    // boxes are not kept: each is computed once more, into the tree, which costs less than
     // holding 24 bytes a face beside it.
-    let parts = if on_every_thread(nt) {
-        rayon::current_num_threads()
-    } else {
-        1
-    };
-    let size = nt.div_ceil(parts).max(1);
-    let (kept, centres): (Vec<Vec<u32>>, Vec<Vec<[f32; 3]>>) = (0..parts)
-        .into_par_iter()
-        .map(|j| {
-            let run = (j * size).min(nt)..((j + 1) * size).min(nt);
-            let mut kept = Vec::with_capacity(run.len());
-            let mut centres = Vec::with_capacity(run.len());
-            for t in run.map(|t| t as u32) {
-                // The zero-area bound is the mesh's own: measure the face in its own coordinates.
-                let [a, b, c] = triangles[t as usize].map(|v| surface.points[v as usize]);
-                if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
-                    kept.push(t);
-                    centres.push(tree::centre(&box_at(t)));
-                }
-            }
-            (kept, centres)
-        })
-        .unzip();
-    let starts: Vec<usize> = kept
-        .iter()
-        .scan(0, |next, run| {
-            let start = *next;
-            *next += run.len();
-            Some(start)
-        })
-        .collect();
-    let total = starts.last().map_or(0, |&s| s) + kept.last().map_or(0, Vec::len);
-    // The run of kept face `i` and its place in the run.
-    let at = |i: usize| {
-        let j = starts.partition_point(|&s| s <= i) - 1;
-        (j, i - starts[j])
-    };
-    let order = match &centres[..] {
-        [one] => morton::order(total, |i| one[i]),
-        _ => morton::order(total, |i| {
-            let (j, k) = at(i);
-            centres[j][k]
-        }),
-    };
+    let mut kept: Vec<u32> = Vec::with_capacity(nt);
+    let mut centres: Vec<[f32; 3]> = Vec::with_capacity(nt);
+    for t in 0..nt as u32 {
+        // The zero-area bound is the mesh's own: measure the face in its own coordinates.
+        let [a, b, c] = triangles[t as usize].map(|v| surface.points[v as usize]);
+        if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
+            kept.push(t);
+            centres.push(tree::centre(&box_at(t)));
+        }
+    }
+    let order = morton::order(kept.len(), |i| centres[i]);
     drop(centres);
     // The table face at each place of the sorted order.
-    let face = |i: u32| match &kept[..] {
-        [one] => one[i as usize],
-        _ => {
-            let (j, k) = at(i as usize);
-            kept[j][k]
-        }
-    };
     let faces: Vec<u32> = order
         .par_iter()
         .with_min_len(1 << 14)
-        .map(|&i| face(i))
+        .map(|&i| kept[i as usize])
         .collect();
     drop((kept, order));
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
