@@ -54,11 +54,11 @@ unsafe impl GlobalAlloc for HugePages {
         p
     }
 
-    /// A large zeroed block below [`KEPT_BLOCK`] is taken unzeroed, advised, then zeroed here:
-    /// glibc's `calloc` zeroes such a block itself when it comes from a heap, and that first touch,
-    /// before the advice, faulted it in 4 KiB pages (on the 871k-face torus, 5,900 of the scan's
-    /// 10,500 faults were in `calloc`'s zeroing). Blocks glibc maps on their own come zeroed
-    /// from the kernel, untouched, and are left to it.
+    /// A large zeroed block below glibc's 32 MiB mapping threshold is taken unzeroed, advised,
+    /// then zeroed here. glibc's `calloc` zeroes such a block itself when it is recycled or starts
+    /// a new thread heap, and that first touch, before the advice, faulted a fresh block in 4 KiB
+    /// pages (on the 871k-face torus, 5,900 of the scan's 10,500 faults were in that zeroing).
+    /// Blocks glibc maps on their own come zeroed from the kernel, untouched, and are left to it.
     #[inline]
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
         let size = layout.size();
