@@ -144,56 +144,6 @@ mod tests {
         None
     }
 
-    /// The minor page faults this thread has taken so far.
-    #[cfg(target_os = "linux")]
-    fn faults() -> i64 {
-        let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-        // SAFETY: `usage` is a valid `rusage` to fill.
-        unsafe { libc::getrusage(libc::RUSAGE_THREAD, &mut usage) };
-        usage.ru_minflt
-    }
-
-    /// Large zeroed blocks kept in a heap fault in as huge pages: the allocator's own zeroing
-    /// must not touch them before the advice. glibc's `calloc` zeroes a block that starts a new
-    /// thread heap itself, and so faulted it in 4 KiB pages (on an 871k-face scan, 5,900 of its
-    /// 10,500 faults). The blocks' ends may still be small pages.
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    #[test]
-    fn large_zeroed_blocks_fault_in_huge_pages() {
-        if std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled")
-            .map_or(true, |s| s.contains("[never]"))
-        {
-            return;
-        }
-        keep_freed_memory();
-        let size = 20 << 20;
-        let layout = Layout::from_size_align(size, 8).unwrap();
-        // On a thread of its own, as a scan's worker allocates: four blocks cannot share one
-        // 64 MiB thread heap, so at least one starts a new heap.
-        let faults_each = std::thread::spawn(move || unsafe {
-            let mut blocks = Vec::new();
-            let mut taken = Vec::new();
-            for _ in 0..4 {
-                let before = faults();
-                let p = HugePages.alloc_zeroed(layout);
-                assert!(!p.is_null());
-                let block = std::slice::from_raw_parts_mut(p, size);
-                block.iter_mut().step_by(4096).for_each(|b| *b += 1);
-                taken.push(faults() - before);
-                assert!(block.iter().step_by(4096).all(|&b| b == 1));
-                blocks.push(p);
-            }
-            blocks
-                .into_iter()
-                .for_each(|p| HugePages.dealloc(p, layout));
-            taken
-        })
-        .join()
-        .unwrap();
-        // A block of 5,120 small pages; its two ends hold at most 1,024.
-        assert!(faults_each.iter().all(|&f| f < 1_500), "{faults_each:?}");
-    }
-
     /// A large block is advised to use huge pages (`hg` in its mapping's flags), keeps what is
     /// written to it when it grows, and a zeroed one reads as zeros.
     #[test]
