@@ -62,14 +62,16 @@ unsafe impl GlobalAlloc for HugePages {
     #[inline]
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
         let size = layout.size();
-        if !(LARGE..KEPT_BLOCK).contains(&size) {
-            let p = unsafe { System.alloc_zeroed(layout) };
-            Self::advise(p, size);
-            return p;
-        }
-        let p = unsafe { System.alloc(layout) };
-        if !p.is_null() {
-            Self::advise(p, size);
+        let ours = (LARGE..KEPT_BLOCK).contains(&size);
+        let p = unsafe {
+            if ours {
+                System.alloc(layout)
+            } else {
+                System.alloc_zeroed(layout)
+            }
+        };
+        Self::advise(p, size);
+        if ours && !p.is_null() {
             // SAFETY: `p` is a fresh block of `size` bytes.
             unsafe { std::ptr::write_bytes(p, 0, size) };
         }
@@ -91,7 +93,8 @@ unsafe impl GlobalAlloc for HugePages {
 
 /// The largest block the system allocator keeps in its heaps rather than mapping on its own
 /// (glibc's ceiling for `M_MMAP_THRESHOLD` on 64-bit systems: half of a thread heap's 64 MiB).
-/// Where [`keep_freed_memory`] does nothing, [`LARGE`] (no block is zeroed here).
+/// Where [`keep_freed_memory`] does nothing, [`LARGE`]: `alloc_zeroed` then leaves every block
+/// to the system allocator.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 const KEPT_BLOCK: usize = 32 << 20;
 #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
