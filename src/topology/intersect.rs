@@ -18,7 +18,8 @@
 //!   tile the inside of simple loops once, so none of them meet), and the pairs within a flat
 //!   region (`regions`: faces of one plane perpendicular to an axis, joined edge to edge, that
 //!   are a flat patch; the tops and bottoms of CAD plates, whose long faces the tree cannot
-//!   separate);
+//!   separate), and the pairs of a region's face with a face that touches the region's plane only
+//!   at the region's corners or along one of its edges (the walls standing on a plate);
 //! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
 //!   come from the Corner Table's welded vertex ids.
 //!
@@ -287,8 +288,8 @@ struct Shared<'a> {
     /// The table face at each place of the sorted order.
     faces: &'a [u32],
     tree: &'a Tree,
-    /// Per table face, its flat region ([`regions::flat_regions`]; empty: none).
-    regions: &'a [u32],
+    /// The flat regions ([`regions::flat_regions`]).
+    regions: &'a regions::Regions,
     involved: &'a [AtomicU64],
     stop: &'a AtomicBool,
     search: Search,
@@ -324,6 +325,35 @@ struct Finder<'a> {
     patches: patches::Patches<'a>,
 }
 
+impl Finder<'_> {
+    /// Whether faces at places `a` and `b` (vertices `va`, `vb`, points from `corners`) meet in no
+    /// point because of the flat regions: both in one, or one touching the other's region only at
+    /// its corners or along one of its edges ([`regions::Regions::apart`]).
+    #[inline]
+    fn apart_by_regions(
+        &self,
+        a: u32,
+        va: [u32; 3],
+        b: u32,
+        vb: [u32; 3],
+        corners: impl Fn([u32; 3]) -> [meet::Point; 3],
+    ) -> bool {
+        let s = self.shared;
+        let (ta, tb) = (s.faces[a as usize], s.faces[b as usize]);
+        let (ra, rb) = (s.regions.of(ta), s.regions.of(tb));
+        if ra == regions::NONE && rb == regions::NONE {
+            return false;
+        }
+        if ra == rb {
+            return true;
+        }
+        let table = s.surface.table;
+        let (pa, pb) = (corners(va), corners(vb));
+        (ra != regions::NONE && s.regions.apart(table, ra, pa, tb, vb, pb))
+            || (rb != regions::NONE && s.regions.apart(table, rb, pb, ta, va, pa))
+    }
+}
+
 impl Visit for Finder<'_> {
     fn fork(&self) -> Self {
         Finder {
@@ -345,14 +375,7 @@ impl Visit for Finder<'_> {
 
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
-        if !s.regions.is_empty() {
-            let r = s.regions[s.faces[a as usize] as usize];
-            if r != regions::NONE && r == s.regions[s.faces[b as usize] as usize] {
-                return;
-            }
-        }
         let (va, vb) = (s.tree.vertices(a), s.tree.vertices(b));
-        let shared = meet::shared(va, vb);
         // Written out: `array::map` here costs as much as the loads.
         let corners = |[a, b, c]: [u32; 3]| {
             [
@@ -361,6 +384,10 @@ impl Visit for Finder<'_> {
                 s.points[c as usize],
             ]
         };
+        if !s.regions.is_empty() && self.apart_by_regions(a, va, b, vb, corners) {
+            return;
+        }
+        let shared = meet::shared(va, vb);
         // Pairs come in rows of one face `a` (a leaf's face against its neighbours): its plane is
         // computed once per row.
         if self.row.as_ref().is_some_and(|(r, _)| *r != a) {

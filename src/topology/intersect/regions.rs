@@ -18,6 +18,22 @@
 //! any set of faces, not only a node of the tree), so they do not meet. What makes the skip exact
 //! is the flat-patch test alone: the grouping only chooses which sets are worth testing.
 //!
+//! A face outside a flat region that touches the region's plane only at corners of the region
+//! meets none of its faces either, and the search skips those pairs too ([`Regions::apart`]): the
+//! walls of an extruded profile touch its end caps along their end edges and at their far corners,
+//! and their boxes overlap the caps' long faces by the hundred thousand. Let `g` touch the plane
+//! of region `R` only at its vertex `v`, a corner of some face `D` of `R` (its other two vertices
+//! strictly on one side of the plane), and let `C` be a face of `R` with a point of `g`: that
+//! point is `v`, which `C` and `D` have in common, so (as two faces of a flat patch) it is a vertex
+//! or on an edge they share, and being `D`'s corner it is a shared vertex, `v` itself. Then `C`
+//! and `g` have only their shared vertex in common: they do not meet. If `g` touches the plane only
+//! along its edge `a b`, the edge of a face `D` of `R`, a common point of `g` and `C` is on `a b`,
+//! so again a point of `D`: a vertex or a point of an edge `C` and `D` share, which on `a b` is `a`,
+//! `b`, or the edge `a b` itself; `C` and `g` share that vertex or that edge, and with `g`'s third
+//! vertex off the plane they do not fold onto each other. Which vertices and edges are the
+//! region's comes from the Corner Table (vertex ids, and the face across `g`'s edge), never from
+//! positions; the sides are exact comparisons of coordinate `k`.
+//!
 //! Tilted planes are not looked for. Their exact test is an `orient3d` whose fast filter fails on
 //! points exactly in one plane, and its exact fallback ran on the diagonal of every planar quad of
 //! a smooth mesh: on an 871k-face torus made of quads it cost more (+27% of the search's
@@ -25,6 +41,8 @@
 //! perpendicular to axis `k` exactly when it turns along `k` only (its exact normal has no other
 //! component), which its turn bits, computed by the stars' pass, already say: the test costs a
 //! byte a face, and a mesh with no joins allocates nothing.
+
+use std::cmp::Ordering;
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::topology::sets::{find, union};
@@ -41,15 +59,113 @@ const MAX_LOOPS: usize = 64;
 /// No flat region.
 pub(super) const NONE: u32 = u32::MAX;
 
-/// Per table face, its flat region ([`NONE`] when it is in none); empty when the mesh has none.
-/// `turns`: the faces' turn bits ([`super::patches::turn_bits`]); `along`: per vertex, the axes
-/// its star is flat along ([`super::stars::Stars::along`]).
+/// The flat regions of a mesh: each face's region, and the regions each vertex is a corner of.
+#[derive(Default)]
+pub(super) struct Regions {
+    /// Per table face, its flat region ([`NONE`] when it is in none); empty when the mesh has none.
+    face: Vec<u32>,
+    /// The regions with a face at vertex `v` are `ids[start[v]..start[v + 1]]`.
+    start: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl Regions {
+    /// The regions of `face` (per table face of `table`, as [`Regions::face`]), with their
+    /// corners.
+    fn new(face: Vec<u32>, table: &CornerTable) -> Regions {
+        if face.is_empty() {
+            return Regions::default();
+        }
+        // (vertex, region) of every corner of a region's face, each once, by vertex.
+        let mut corners: Vec<(u32, u32)> = face
+            .iter()
+            .zip(table.triangles())
+            .filter(|&(&r, _)| r != NONE)
+            .flat_map(|(&r, tri)| tri.map(|v| (v, r)))
+            .collect();
+        corners.sort_unstable();
+        corners.dedup();
+        let mut start = vec![0u32; table.vertex_count() + 1];
+        for &(v, _) in &corners {
+            start[v as usize + 1] += 1;
+        }
+        for v in 0..table.vertex_count() {
+            start[v + 1] += start[v];
+        }
+        let ids = corners.into_iter().map(|(_, r)| r).collect();
+        Regions { face, start, ids }
+    }
+
+    /// Whether the mesh has no flat region.
+    pub(super) fn is_empty(&self) -> bool {
+        self.face.is_empty()
+    }
+
+    /// The flat region of table face `t` ([`NONE`]: none); only when not [`Regions::is_empty`].
+    #[inline]
+    pub(super) fn of(&self, t: u32) -> u32 {
+        self.face[t as usize]
+    }
+
+    /// Whether vertex `v` is a corner of a face of region `r`.
+    fn has_corner(&self, r: u32, v: u32) -> bool {
+        let (lo, hi) = (self.start[v as usize], self.start[v as usize + 1]);
+        self.ids[lo as usize..hi as usize].contains(&r)
+    }
+
+    /// Whether table face `g` (its vertices `ids` at `points`) touches the plane of region `r`
+    /// only at a corner of the region, or only along an edge of one of its faces, so that it meets
+    /// no face of `r` (see the module docs). `plane`: the points of a face of `r`.
+    #[inline]
+    pub(super) fn apart(
+        &self,
+        table: &CornerTable,
+        r: u32,
+        plane: [Point; 3],
+        g: u32,
+        ids: [u32; 3],
+        points: [Point; 3],
+    ) -> bool {
+        let [p, q, s] = plane;
+        // The region's plane is `x_k = p[k]`.
+        let Some(k) = (0..3).find(|&k| p[k] == q[k] && q[k] == s[k]) else {
+            return false;
+        };
+        let side = points.map(|x| x[k].partial_cmp(&p[k]));
+        let on: [bool; 3] = side.map(|s| s == Some(Ordering::Equal));
+        match on.iter().filter(|&&o| o).count() {
+            1 => {
+                let i = on.iter().position(|&o| o).unwrap_or(0);
+                let (j, m) = ((i + 1) % 3, (i + 2) % 3);
+                side[j] == side[m] && side[j].is_some() && self.has_corner(r, ids[i])
+            }
+            2 => {
+                // The edge on the plane is the one opposite the corner off it.
+                let m = on.iter().position(|&o| !o).unwrap_or(0);
+                side[m].is_some()
+                    && table
+                        .opposite(3 * g + m as u32)
+                        .is_some_and(|o| self.face[CornerTable::t(o) as usize] == r)
+            }
+            _ => false,
+        }
+    }
+}
+
+/// The flat regions of `table` over `points`. `turns`: the faces' turn bits
+/// ([`super::patches::turn_bits`]); `along`: per vertex, the axes its star is flat along
+/// ([`super::stars::Stars::along`]).
 pub(super) fn flat_regions(
     points: &[Point],
     table: &CornerTable,
     turns: &[u8],
     along: &[u8],
-) -> Vec<u32> {
+) -> Regions {
+    Regions::new(face_regions(points, table, turns, along), table)
+}
+
+/// Per table face, its flat region ([`NONE`] when it is in none); empty when the mesh has none.
+fn face_regions(points: &[Point], table: &CornerTable, turns: &[u8], along: &[u8]) -> Vec<u32> {
     let nt = table.triangle_count();
     // The joins: pairs of faces on a coplanar consistent manifold edge (few on most meshes).
     let mut joins: Vec<(u32, u32)> = Vec::new();
@@ -152,7 +268,7 @@ mod tests {
     fn regions_of(points: &[Point], triangles: &[[u32; 3]]) -> Vec<u32> {
         let table = CornerTable::build(triangles, points.len());
         let stars = flat_stars(points, &table);
-        flat_regions(points, &table, &stars.turns, &stars.along)
+        flat_regions(points, &table, &stars.turns, &stars.along).face
     }
 
     /// An `n` x `n` grid of squares in the plane `z = h`, each cut into two faces, turning
@@ -258,7 +374,7 @@ mod tests {
             let (points, triangles) = plane_mesh(&mut next);
             let table = CornerTable::build(&triangles, points.len());
             let stars = flat_stars(&points, &table);
-            let regions = flat_regions(&points, &table, &stars.turns, &stars.along);
+            let regions = flat_regions(&points, &table, &stars.turns, &stars.along).face;
             let at = |t: usize| triangles[t].map(|v| points[v as usize]);
             let meet = |t: usize, u: usize| faces_meet(triangles[t], at(t), triangles[u], at(u));
             with_regions += usize::from(!regions.is_empty());
@@ -395,6 +511,212 @@ mod tests {
         let regions = regions_of(&points, &kept);
         assert_eq!(regions.len(), kept.len());
         assert!(regions.iter().all(|&r| r != NONE && r == regions[0]));
+    }
+
+    /// Every pair of faces of `points` and `triangles` that meet, by the exact test of each pair,
+    /// and the number the search finds; the faces the search leaves out (no area) are left out.
+    fn every_pair_and_search(points: &[Point], triangles: &[[u32; 3]]) -> (usize, usize) {
+        let at = |t: usize| triangles[t].map(|v| points[v as usize]);
+        let kept: Vec<usize> = (0..triangles.len())
+            .filter(|&t| {
+                let [a, b, c] = at(t);
+                cross2(a, b, c) > 0.0 && turns(a, b, c) != [0.0; 3]
+            })
+            .collect();
+        let meet = |t: usize, u: usize| faces_meet(triangles[t], at(t), triangles[u], at(u));
+        let mut every = 0;
+        for (i, &t) in kept.iter().enumerate() {
+            every += kept[i + 1..].iter().filter(|&&u| meet(t, u)).count();
+        }
+        let table = CornerTable::build(triangles, points.len());
+        let search = Search {
+            kept_pairs: 0,
+            first_only: false,
+        };
+        let found = intersect_table(points, &table, &|_| 0, 0.0, None, &search);
+        (every, found.self_intersections)
+    }
+
+    /// A 2 x 2 plate in `z = 0` (one flat region) and walls on it, hand-placed: a wall on a
+    /// border edge and one on a corner touch the plane only at the region's corners and edges and
+    /// are apart from the region; walls touching it at a point of a face's inside, at a copy of an
+    /// inner vertex (another id at its position), or along a diagonal through an inner vertex are
+    /// not, and each of them meets the plate.
+    #[test]
+    fn walls_on_a_plate_are_apart_only_where_they_touch_its_corners_and_edges() {
+        let (mut points, mut triangles) = grid(2, 0.0, false, 0);
+        let plate = triangles.len();
+        let mut wall = |corners: [Point; 3], on: &[(usize, u32)]| {
+            let mut ids = [0; 3];
+            for (k, p) in corners.iter().enumerate() {
+                ids[k] = on.iter().find(|&&(j, _)| j == k).map_or_else(
+                    || {
+                        points.push(*p);
+                        points.len() as u32 - 1
+                    },
+                    |&(_, v)| v,
+                );
+            }
+            triangles.push(ids);
+            triangles.len() - 1
+        };
+        let o = [0.0; 3];
+        // On the border edge 0 -> 1 of face [0, 1, 4], traversed the other way.
+        let edge = wall([o, o, [0.5, -0.5, 1.0]], &[(0, 1), (1, 0)]);
+        // On corner 8, leaning out.
+        let corner = wall([o, [2.5, 3.0, 1.0], [3.0, 2.5, 2.0]], &[(0, 8)]);
+        // At (0.75, 0.25, 0), inside face [0, 1, 4], with a vertex of its own.
+        let inside = wall(
+            [[0.75, 0.25, 0.0], [0.75, 0.25, 1.0], [1.5, 0.25, 1.0]],
+            &[],
+        );
+        // At a copy of inner vertex 4.
+        let copy = wall([[1.0, 1.0, 0.0], [1.0, 1.5, 1.0], [1.5, 1.0, 1.0]], &[]);
+        // Along the diagonal 0 - 8, which passes through vertex 4 and is no edge.
+        let diagonal = wall([o, o, [1.0, 0.0, 1.0]], &[(0, 0), (1, 8)]);
+
+        let table = CornerTable::build(&triangles, points.len());
+        let stars = flat_stars(&points, &table);
+        let regions = flat_regions(&points, &table, &stars.turns, &stars.along);
+        let r = regions.of(0);
+        assert_ne!(r, NONE);
+        assert!((0..plate as u32).all(|t| regions.of(t) == r));
+        let at = |t: usize| triangles[t].map(|v| points[v as usize]);
+        let apart = |g: usize| regions.apart(&table, r, at(0), g as u32, triangles[g], at(g));
+        let meets_plate =
+            |g: usize| (0..plate).any(|t| faces_meet(triangles[t], at(t), triangles[g], at(g)));
+        for g in [edge, corner] {
+            assert!(apart(g), "wall {g}");
+            assert!(!meets_plate(g), "wall {g}");
+        }
+        for g in [inside, copy, diagonal] {
+            assert!(!apart(g), "wall {g}");
+            assert!(meets_plate(g), "wall {g}");
+        }
+        let (every, found) = every_pair_and_search(&points, &triangles);
+        assert_eq!(found, every);
+    }
+
+    /// Random plates (as [`random_plane_meshes_have_no_meeting_pair_in_a_region`] makes them)
+    /// with random walls: on border edges, on vertices, crossing the plane, lying in it, touching
+    /// it at points of their own or at copies of the plate's vertices. No face that
+    /// [`Regions::apart`] says is apart from a region meets one of its faces, by the exact test
+    /// of each pair, and the search finds what that test finds. Checked to fail when `apart` takes
+    /// any single corner on the plane, or any edge of the wall on it, as the region's.
+    #[test]
+    fn random_walls_apart_from_a_region_meet_none_of_its_faces() {
+        let mut bits = crate::geometry::xorshift(0x0dd5_ca1e_7a11_5eed);
+        let mut next = move |n: u64| bits() % n.max(1);
+        let (mut skipped, mut kinds) = (0, [0usize; 2]);
+        for round in 0..600 {
+            let (mut points, mut triangles) = plane_mesh(&mut next);
+            let plate = triangles.len();
+            // The plate's border edges, as their faces traverse them.
+            let mut edges: Vec<(u32, u32)> = triangles
+                .iter()
+                .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+                .collect();
+            edges.sort_unstable_by_key(|&(a, b)| (a.min(b), a.max(b)));
+            let border: Vec<(u32, u32)> = edges
+                .chunk_by(|x, y| (x.0.min(x.1), x.0.max(x.1)) == (y.0.min(y.1), y.0.max(y.1)))
+                .filter(|run| run.len() == 1)
+                .map(|run| run[0])
+                .collect();
+            let span = 4 * 6 + 8;
+            for _ in 0..1 + next(8) {
+                let point = |points: &mut Vec<Point>, z: f64, next: &mut dyn FnMut(u64) -> u64| {
+                    let x = next(span) as f64 - 4.0;
+                    let y = next(span) as f64 - 4.0;
+                    points.push([x, y, z]);
+                    points.len() as u32 - 1
+                };
+                let height = |next: &mut dyn FnMut(u64) -> u64| {
+                    let h = 1.0 + next(4) as f64;
+                    if next(2) == 0 {
+                        h
+                    } else {
+                        -h
+                    }
+                };
+                let wall = match next(6) {
+                    // On a border edge, the other way round (sometimes lying in the plane).
+                    0 | 1 if !border.is_empty() => {
+                        let (a, b) = border[next(border.len() as u64) as usize];
+                        let z = if next(8) == 0 { 0.0 } else { height(&mut next) };
+                        [b, a, point(&mut points, z, &mut next)]
+                    }
+                    // On a vertex of the plate: the other two on one side, or across.
+                    2 | 3 => {
+                        let v = next(points.len() as u64) as u32;
+                        let z = height(&mut next);
+                        let w = if next(4) == 0 { -z } else { z };
+                        [
+                            v,
+                            point(&mut points, z, &mut next),
+                            point(&mut points, w, &mut next),
+                        ]
+                    }
+                    // On a point of its own in the plane, or on a copy of a vertex.
+                    4 => {
+                        let v = if next(2) == 0 {
+                            point(&mut points, 0.0, &mut next)
+                        } else {
+                            let copy = points[next(points.len() as u64) as usize];
+                            points.push(copy);
+                            points.len() as u32 - 1
+                        };
+                        let z = height(&mut next);
+                        [
+                            v,
+                            point(&mut points, z, &mut next),
+                            point(&mut points, z, &mut next),
+                        ]
+                    }
+                    // Two vertices of the plate, joined or not by an edge.
+                    _ => {
+                        let n = points.len() as u64;
+                        let (a, b) = (next(n) as u32, next(n) as u32);
+                        let z = height(&mut next);
+                        [a, b, point(&mut points, z, &mut next)]
+                    }
+                };
+                if wall[0] != wall[1] && wall[1] != wall[2] && wall[0] != wall[2] {
+                    triangles.push(wall);
+                }
+            }
+            let table = CornerTable::build(&triangles, points.len());
+            let stars = flat_stars(&points, &table);
+            let regions = flat_regions(&points, &table, &stars.turns, &stars.along);
+            if regions.is_empty() {
+                continue;
+            }
+            let at = |t: usize| triangles[t].map(|v| points[v as usize]);
+            for t in 0..plate {
+                let r = regions.of(t as u32);
+                if r == NONE {
+                    continue;
+                }
+                for g in 0..triangles.len() {
+                    if regions.of(g as u32) == r
+                        || !regions.apart(&table, r, at(t), g as u32, triangles[g], at(g))
+                    {
+                        continue;
+                    }
+                    skipped += 1;
+                    kinds[usize::from(g >= plate)] += 1;
+                    assert!(
+                        !faces_meet(triangles[t], at(t), triangles[g], at(g)),
+                        "round {round}: face {g} is apart from region {r} but meets its face {t}"
+                    );
+                }
+            }
+            let (every, found) = every_pair_and_search(&points, &triangles);
+            assert_eq!(found, every, "round {round}");
+        }
+        assert!(
+            skipped > 5000 && kinds.iter().all(|&k| k > 500),
+            "{skipped} pairs apart, {kinds:?} (plate faces, walls)"
+        );
     }
 
     /// A mesh with no two coplanar neighbours has no regions (and allocates nothing per face).
