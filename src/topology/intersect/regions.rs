@@ -64,7 +64,8 @@ pub(super) const NONE: u32 = u32::MAX;
 pub(super) struct Regions {
     /// Per table face, its flat region ([`NONE`] when it is in none); empty when the mesh has none.
     face: Vec<u32>,
-    /// The regions with a face at vertex `v` are `ids[start[v]..start[v + 1]]`.
+    /// The regions with a face at vertex `v` are in `ids[start[v]..start[v + 1]]`, each once,
+    /// the rest of those slots [`NONE`].
     start: Vec<u32>,
     ids: Vec<u32>,
 }
@@ -76,23 +77,27 @@ impl Regions {
         if face.is_empty() {
             return Regions::default();
         }
-        // (vertex, region) of every corner of a region's face, each once, by vertex.
-        let mut corners: Vec<(u32, u32)> = face
-            .iter()
-            .zip(table.triangles())
-            .filter(|&(&r, _)| r != NONE)
-            .flat_map(|(&r, tri)| tri.map(|v| (v, r)))
-            .collect();
-        corners.sort_unstable();
-        corners.dedup();
+        // Per vertex, a slot for each corner of a region's face at it, filled with its regions
+        // each once (the slots a repeat would take stay NONE, which no region equals).
+        let triangles = table.triangles();
         let mut start = vec![0u32; table.vertex_count() + 1];
-        for &(v, _) in &corners {
-            start[v as usize + 1] += 1;
+        for (tri, _) in triangles.iter().zip(&face).filter(|&(_, &r)| r != NONE) {
+            for &v in tri {
+                start[v as usize + 1] += 1;
+            }
         }
         for v in 0..table.vertex_count() {
             start[v + 1] += start[v];
         }
-        let ids = corners.into_iter().map(|(_, r)| r).collect();
+        let mut ids = vec![NONE; start[table.vertex_count()] as usize];
+        for (tri, &r) in triangles.iter().zip(&face).filter(|&(_, &r)| r != NONE) {
+            for &v in tri {
+                let slots = &mut ids[start[v as usize] as usize..start[v as usize + 1] as usize];
+                if let Some(free) = slots.iter().position(|&x| x == r || x == NONE) {
+                    slots[free] = r;
+                }
+            }
+        }
         Regions { face, start, ids }
     }
 
