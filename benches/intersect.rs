@@ -1,9 +1,10 @@
 //! Self-intersection benchmark: the test alone (weld, table and components built beforehand) on a
-//! clean 1M-face torus, on two overlapping 0.5M tori (many pairs), on corpus files with many pairs
-//! when the corpus is there, each on 1 and 2 threads; then the whole path of a scan (read a binary
-//! STL, analyse, test) for a 1M-face torus with a few crossings (14 pairs, CGAL finds the same 14)
-//! with its parts, and for a 10k-face file stopping at the first pair (the pre-commit case). Wall
-//! times on a loaded machine overstate the work; the CPU time per run is printed beside them.
+//! clean 1M-face torus, on two overlapping 0.5M tori (many pairs), and when the corpus is there on
+//! corpus files with many pairs and on a CAD plate whose boxes overlap by the hundred thousand,
+//! each on 1 and 2 threads; then the whole path of a scan (read a binary STL, analyse, test) for a
+//! 1M-face torus with a few crossings (14 pairs, CGAL finds the same 14) with its parts, and for a
+//! 10k-face file stopping at the first pair (the pre-commit case). Wall times on a loaded machine
+//! overstate the work; the CPU time per run is printed beside them.
 //!
 //!     cargo bench --bench intersect            # everything
 //!     cargo bench --bench intersect -- clean   # only the parts whose label contains "clean"
@@ -252,7 +253,13 @@ fn corpus_files() {
         root: corpus.clone(),
         limits: Limits::default(),
     };
-    for file in ["common3d/ogre.obj", "trimesh/featuretype.STL"] {
+    // A CAD plate of extruded profiles: long sliver faces whose boxes overlap by the hundred
+    // thousand, none meeting (the flat regions' skips).
+    for file in [
+        "common3d/ogre.obj",
+        "trimesh/featuretype.STL",
+        "manifold/thingi10k_raw/1514499.stl",
+    ] {
         if !wanted(file) {
             continue;
         }
