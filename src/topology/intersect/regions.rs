@@ -64,8 +64,7 @@ pub(super) const NONE: u32 = u32::MAX;
 pub(super) struct Regions {
     /// Per table face, its flat region ([`NONE`] when it is in none); empty when the mesh has none.
     face: Vec<u32>,
-    /// The regions with a face at vertex `v` are in `ids[start[v]..start[v + 1]]`, each once,
-    /// the rest of those slots [`NONE`].
+    /// The regions with a face at vertex `v` are `ids[start[v]..start[v + 1]]`, each once.
     start: Vec<u32>,
     ids: Vec<u32>,
 }
@@ -98,6 +97,22 @@ impl Regions {
                 }
             }
         }
+        // Without the empty slots each vertex lists only its distinct regions, a few at most; a
+        // fan of many faces of one region at a vertex no longer makes every look-up there long.
+        let mut kept = 0;
+        for v in 0..table.vertex_count() {
+            let (lo, hi) = (start[v] as usize, start[v + 1] as usize);
+            start[v] = kept as u32;
+            for i in lo..hi {
+                if ids[i] == NONE {
+                    break;
+                }
+                ids[kept] = ids[i];
+                kept += 1;
+            }
+        }
+        start[table.vertex_count()] = kept as u32;
+        ids.truncate(kept);
         Regions { face, start, ids }
     }
 
@@ -580,12 +595,16 @@ mod tests {
         // Along the diagonal 0 - 8, which passes through vertex 4 and is no edge.
         let diagonal = wall([o, o, [1.0, 0.0, 1.0]], &[(0, 0), (1, 8)]);
 
+        let copy_of_4 = triangles[copy][0];
         let table = CornerTable::build(&triangles, points.len());
         let stars = flat_stars(&points, &table);
         let regions = flat_regions(&points, &table, &stars.turns, &stars.along);
         let r = regions.of(0);
         assert_ne!(r, NONE);
         assert!((0..plate as u32).all(|t| regions.of(t) == r));
+        // Inner vertex 4 is a corner of six faces of the region: it lists the region once.
+        assert_eq!(regions.start[5] - regions.start[4], 1);
+        assert!(regions.has_corner(r, 4) && !regions.has_corner(r, copy_of_4));
         let at = |t: usize| triangles[t].map(|v| points[v as usize]);
         let apart = |g: usize| regions.apart(&table, r, at(0), g as u32, triangles[g], at(g));
         let meets_plate =
