@@ -19,7 +19,7 @@ use crate::caught;
 use crate::config::Settings;
 use crate::copies::{self, Repaired};
 use crate::formats::{self, Format, ReadContext};
-use crate::judge::{judge, Judged};
+use crate::judge::{judge, judge_releasing, Judged};
 use crate::mesh::Mesh;
 use crate::picture;
 use crate::report::{Detail, Outcome, RepairDone, Row, ShellRow};
@@ -195,7 +195,7 @@ fn read_and_judge(
     };
     // A repairing scan keeps what the writer of a copy needs, so the file is read once.
     let repairing = settings.repair_dir.is_some();
-    let (meshes, retained) = if repairing {
+    let (mut meshes, retained) = if repairing {
         formats::read_retaining(&source.path, format, &context).map_err(|e| e.to_string())?
     } else {
         let meshes = formats::read(&source.path, format, &context).map_err(|e| e.to_string())?;
@@ -214,11 +214,18 @@ fn read_and_judge(
     let mut judged = Vec::with_capacity(meshes.len());
     let mut details = Vec::with_capacity(meshes.len());
     let mut took = Vec::with_capacity(meshes.len());
-    for mesh in &meshes {
+    for mesh in &mut meshes {
         let start = Instant::now();
-        let mut verdict = judge(mesh, settings);
+        let has_faces = !mesh.triangles.is_empty();
+        // Only the repair stage reads a mesh's positions and faces again: without it they are
+        // freed before the search, where a big mesh's analysis needs the most memory.
+        let mut verdict = if repairing {
+            judge(mesh, settings)
+        } else {
+            judge_releasing(mesh, settings)
+        };
         // A drawing that panics costs the picture, never the row.
-        let detail = (extras.details && !mesh.triangles.is_empty()).then(|| {
+        let detail = (extras.details && has_faces).then(|| {
             let picture = verdict.built.as_ref().and_then(|built| {
                 caught(|| picture::draw(&places(built, &verdict.analysis)))
                     .ok()

@@ -10,7 +10,7 @@ pub(crate) mod nesting;
 mod places;
 pub(crate) mod sets;
 
-pub use analyse::{analyse, analyse_keeping};
+pub use analyse::{analyse, analyse_keeping, analyse_releasing};
 pub use built::{build, Built, LeftOut};
 pub use intersect::{intersect, intersections_built, Intersections, Search, Surface};
 pub use places::{places, Places, NO_SHELL};
