@@ -1,6 +1,7 @@
 //! The one path from a mesh to a verdict: analyse it, let the rules turn the facts into findings,
-//! and give the status a report row shows. The scan judges every mesh it reads with [`judge`], and
-//! the repair stage judges every copy it writes with the same function, so a copy is held to
+//! and give the status a report row shows. The scan judges every mesh it reads with [`judge`] (or
+//! [`judge_releasing`], the same verdict with the mesh's arrays freed early, when no repair
+//! follows), and the repair stage judges every copy it writes with [`judge`], so a copy is held to
 //! exactly the standard its source was.
 
 use crate::config::Settings;
