@@ -325,35 +325,6 @@ struct Finder<'a> {
     patches: patches::Patches<'a>,
 }
 
-impl Finder<'_> {
-    /// Whether faces at places `a` and `b` (vertices `va`, `vb`, points from `corners`) meet in no
-    /// point because of the flat regions: both in one, or one touching the other's region only at
-    /// its corners or along one of its edges ([`regions::Regions::apart`]).
-    #[inline]
-    fn apart_by_regions(
-        &self,
-        a: u32,
-        va: [u32; 3],
-        b: u32,
-        vb: [u32; 3],
-        corners: impl Fn([u32; 3]) -> [meet::Point; 3],
-    ) -> bool {
-        let s = self.shared;
-        let (ta, tb) = (s.faces[a as usize], s.faces[b as usize]);
-        let (ra, rb) = (s.regions.of(ta), s.regions.of(tb));
-        if ra == regions::NONE && rb == regions::NONE {
-            return false;
-        }
-        if ra == rb {
-            return true;
-        }
-        let table = s.surface.table;
-        let (pa, pb) = (corners(va), corners(vb));
-        (ra != regions::NONE && s.regions.apart(table, ra, pa, tb, vb, pb))
-            || (rb != regions::NONE && s.regions.apart(table, rb, pb, ta, va, pa))
-    }
-}
-
 impl Visit for Finder<'_> {
     fn fork(&self) -> Self {
         Finder {
@@ -375,6 +346,18 @@ impl Visit for Finder<'_> {
 
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
+        let (ta, tb) = (s.faces[a as usize], s.faces[b as usize]);
+        // Two faces of one flat region do not meet; a face of a region and a face touching it only
+        // at its corners or edges are looked at below, once their points are loaded.
+        let regions = if s.regions.is_empty() {
+            None
+        } else {
+            let (ra, rb) = (s.regions.of(ta), s.regions.of(tb));
+            if ra != regions::NONE && ra == rb {
+                return;
+            }
+            (ra != regions::NONE || rb != regions::NONE).then_some((ra, rb))
+        };
         let (va, vb) = (s.tree.vertices(a), s.tree.vertices(b));
         // Written out: `array::map` here costs as much as the loads.
         let corners = |[a, b, c]: [u32; 3]| {
@@ -384,10 +367,6 @@ impl Visit for Finder<'_> {
                 s.points[c as usize],
             ]
         };
-        if !s.regions.is_empty() && self.apart_by_regions(a, va, b, vb, corners) {
-            return;
-        }
-        let shared = meet::shared(va, vb);
         // Pairs come in rows of one face `a` (a leaf's face against its neighbours): its plane is
         // computed once per row.
         if self.row.as_ref().is_some_and(|(r, _)| *r != a) {
@@ -397,11 +376,19 @@ impl Visit for Finder<'_> {
             let [p, q, r] = corners(va);
             (a, meet::Plane::of(p, q, r))
         });
-        if !meet::plane_meets(shared, plane, corners(vb)) {
+        let pb = corners(vb);
+        if let Some((ra, rb)) = regions {
+            let (table, pa) = (s.surface.table, plane.corners());
+            if (ra != regions::NONE && s.regions.apart(table, ra, pa, tb, vb, pb))
+                || (rb != regions::NONE && s.regions.apart(table, rb, pb, ta, va, pa))
+            {
+                return;
+            }
+        }
+        if !meet::plane_meets(meet::shared(va, vb), plane, pb) {
             return;
         }
         // What the findings need of the two faces: their components and numbers.
-        let (ta, tb) = (s.faces[a as usize], s.faces[b as usize]);
         let component = s.surface.component;
         let (ca, cb) = (component(ta), component(tb));
         let number = |t: u32| s.surface.number.map_or(t, |n| n[t as usize]);

@@ -54,7 +54,7 @@ pub(super) fn shared(f_ids: [u32; 3], g_ids: [u32; 3]) -> u32 {
 /// the projections for the others; `false`: only the side tests, which the tests hold the
 /// shortcuts to).
 fn faces_meet_with<const SHORTCUTS: bool>(shared: u32, plane: &Plane, g: [Point; 3]) -> bool {
-    let f = [plane.p, plane.q, plane.r];
+    let f = plane.corners();
     match shared.count_ones() {
         0 => disjoint_meet::<SHORTCUTS>(plane, g),
         1 => {
@@ -198,7 +198,7 @@ fn cones_apart(axes: Axes, v: Point, a: Point, b: Point, c: Point, d: Point) -> 
 /// As in [`vertex_meet`], where floating point cannot tell a side, disjoint projections along f's
 /// normal settle it first (two triangles whose shadows are apart are apart).
 fn disjoint_meet<const SHORTCUTS: bool>(plane: &Plane, g: [Point; 3]) -> bool {
-    let f = [plane.p, plane.q, plane.r];
+    let f = plane.corners();
     let quick = each(g, |x| plane.quick_side(x));
     if let [Some(x), Some(y), Some(z)] = quick {
         if one_strict_side([x, y, z]) {
@@ -246,7 +246,7 @@ fn touching(t: [Point; 3], s: [f64; 3], plane: &Plane) -> Option<bool> {
     let zeros = s.iter().filter(|&&x| x == 0.0).count();
     let k = s.iter().position(|&x| x == 0.0)?;
     let (l, m) = ((k + 1) % 3, (k + 2) % 3);
-    let other = [plane.p, plane.q, plane.r];
+    let other = plane.corners();
     let axes = || plane.axes();
     match zeros {
         1 if strictly_same_side(s[l], s[m]) => {
@@ -311,6 +311,11 @@ impl Plane {
             tiny: has_tiny(&[u, w]),
             axes: std::cell::OnceCell::new(),
         }
+    }
+
+    /// The triangle's corners, in order.
+    pub(super) fn corners(&self) -> [Point; 3] {
+        [self.p, self.q, self.r]
     }
 
     /// A projection that keeps this triangle a triangle ([`plane_axes`]), computed once.

@@ -78,23 +78,26 @@ impl Regions {
         }
         // Per vertex, a slot for each corner of a region's face at it, filled with its regions
         // each once (the slots a repeat would take stay NONE, which no region equals).
-        let triangles = table.triangles();
+        let corners = || {
+            table
+                .triangles()
+                .iter()
+                .zip(&face)
+                .filter(|&(_, &r)| r != NONE)
+                .flat_map(|(tri, &r)| tri.map(|v| (v as usize, r)))
+        };
         let mut start = vec![0u32; table.vertex_count() + 1];
-        for (tri, _) in triangles.iter().zip(&face).filter(|&(_, &r)| r != NONE) {
-            for &v in tri {
-                start[v as usize + 1] += 1;
-            }
+        for (v, _) in corners() {
+            start[v + 1] += 1;
         }
         for v in 0..table.vertex_count() {
             start[v + 1] += start[v];
         }
         let mut ids = vec![NONE; start[table.vertex_count()] as usize];
-        for (tri, &r) in triangles.iter().zip(&face).filter(|&(_, &r)| r != NONE) {
-            for &v in tri {
-                let slots = &mut ids[start[v as usize] as usize..start[v as usize + 1] as usize];
-                if let Some(free) = slots.iter().position(|&x| x == r || x == NONE) {
-                    slots[free] = r;
-                }
+        for (v, r) in corners() {
+            let slots = &mut ids[start[v] as usize..start[v + 1] as usize];
+            if let Some(free) = slots.iter().position(|&x| x == r || x == NONE) {
+                slots[free] = r;
             }
         }
         // Without the empty slots each vertex lists only its distinct regions, a few at most; a
@@ -409,23 +412,8 @@ mod tests {
                     }
                 }
             }
-            // The search leaves out zero-area and collinear faces (here: no area at all).
-            let kept: Vec<usize> = (0..triangles.len())
-                .filter(|&t| {
-                    let [a, b, c] = at(t);
-                    cross2(a, b, c) > 0.0 && turns(a, b, c) != [0.0; 3]
-                })
-                .collect();
-            let mut every = 0;
-            for (i, &t) in kept.iter().enumerate() {
-                every += kept[i + 1..].iter().filter(|&&u| meet(t, u)).count();
-            }
-            let search = Search {
-                kept_pairs: 0,
-                first_only: false,
-            };
-            let found = intersect_table(&points, &table, &|_| 0, 0.0, None, &search);
-            assert_eq!(found.self_intersections, every, "round {round}");
+            let (every, found) = every_pair_and_search(&points, &triangles);
+            assert_eq!(found, every, "round {round}");
         }
         assert!(
             with_regions > 300 && region_pairs > 5000,
@@ -534,7 +522,8 @@ mod tests {
     }
 
     /// Every pair of faces of `points` and `triangles` that meet, by the exact test of each pair,
-    /// and the number the search finds; the faces the search leaves out (no area) are left out.
+    /// and the number the search finds; the faces the search leaves out (zero-area and collinear
+    /// ones; here: no area at all) are left out.
     fn every_pair_and_search(points: &[Point], triangles: &[[u32; 3]]) -> (usize, usize) {
         let at = |t: usize| triangles[t].map(|v| points[v as usize]);
         let kept: Vec<usize> = (0..triangles.len())
