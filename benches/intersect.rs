@@ -218,6 +218,7 @@ fn whole_path_10k(dir: &Path, cx: &ReadContext) {
     let first = Search {
         kept_pairs: 1,
         first_only: true,
+        ..Search::default()
     };
     for (label, search) in [("first pair", first), ("every pair", Search::default())] {
         let (t, _, found) = pool(1).install(|| times(20, || scan_one(&small, cx, &search)));

@@ -54,6 +54,9 @@ pub struct IntersectionsConfig {
     /// How many pairs of faces that meet are kept per mesh for the QA page's picture (the counts
     /// stay exact).
     pub kept_pairs: Option<usize>,
+    /// How many pairs of faces with overlapping boxes the search looks at per face before it
+    /// stops ([`Search::pair_budget`]).
+    pub pair_budget: Option<u64>,
 }
 
 /// The `[repair]` table: which [repairs](crate::definitions#repairs) `--repair-dir` runs.
@@ -145,14 +148,12 @@ impl Settings {
             self.jobs = jobs;
         }
         if let Some(x) = &layer.intersections {
-            let kept = x
-                .kept_pairs
-                .or(self.intersections.map(|s| s.kept_pairs))
-                .unwrap_or(Search::default().kept_pairs);
+            let before = self.intersections.unwrap_or_default();
             let check = x.check.unwrap_or(self.intersections.is_some());
             self.intersections = check.then_some(Search {
-                kept_pairs: kept,
-                ..Search::default()
+                kept_pairs: x.kept_pairs.unwrap_or(before.kept_pairs),
+                pair_budget: x.pair_budget.unwrap_or(before.pair_budget),
+                ..before
             });
         }
         if let Some(r) = &layer.repair {
@@ -473,6 +474,14 @@ mod tests {
             Settings::default().intersections.map(|s| s.kept_pairs),
             Some(100)
         );
+        // A later layer that sets one key keeps what an earlier one set of the other.
+        let budget = capped.merge(&parse("[intersections]
+pair_budget = 7
+").unwrap());
+        assert_eq!(
+            budget.intersections.map(|s| (s.kept_pairs, s.pair_budget)),
+            Some((5, 7))
+        );
     }
 
     /// A misspelt value names its key, the values it takes and the closest one; a value of the
@@ -547,6 +556,11 @@ mod tests {
                 drop_unreferenced_vertices: false,
                 weld_tolerance: 0.0,
             },
+            intersections: Some(Search {
+                kept_pairs: 1,
+                first_only: false,
+                pair_budget: 2,
+            }),
             ..Settings::default()
         };
         for rule in Rule::ALL {

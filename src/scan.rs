@@ -297,6 +297,18 @@ pub fn outcome(
             if overlapping == 1 { "" } else { "s" }
         ));
     }
+    if judged
+        .analysis
+        .intersections
+        .as_ref()
+        .is_some_and(|i| i.stopped)
+    {
+        notes.push(
+            "the search for faces that meet stopped at its budget (a pile of overlapping faces or \
+             parts): its counts are lower bounds; raise `[intersections] pair_budget` to finish it"
+                .to_owned(),
+        );
+    }
     notes.extend(repaired.notes.iter().cloned());
     let mut row = Row::analysed(
         display,

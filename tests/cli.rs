@@ -594,6 +594,42 @@ fn hostile_files_get_rows_and_the_good_file_is_still_reported() {
     );
 }
 
+/// A file whose search would take long stops at the config's budget and says so in its row;
+/// the file beside it is not cut short. 400 separate long triangles in parallel planes (none
+/// meet) whose boxes all overlap make 79,800 pairs to look at; `pair_budget = 1` allows a small
+/// mesh 65,536.
+#[test]
+fn a_search_past_its_budget_says_its_counts_are_lower_bounds() {
+    let mut slivers = String::new();
+    for i in 0..400 {
+        let (d, y) = (f64::from(i) / 1024.0, f64::from(i) / 1_048_576.0);
+        slivers += &format!(
+            "v 0 {y} {d}\nv 1 {y} {}\nv 0.5 {} {}\nf -3 -2 -1\n",
+            1.0 + d,
+            y + 1.0 / 64.0,
+            0.5 + d
+        );
+    }
+    let tree = Tree::new(&[
+        ("slivers.obj", &slivers),
+        ("good.obj", TETRA),
+        ("budget.toml", "[intersections]\npair_budget = 1\n"),
+    ]);
+    let note = "raise `[intersections] pair_budget`";
+    let message = |rows: &[Vec<String>], path: &str| {
+        let row = rows.iter().find(|r| r[0] == path).unwrap();
+        row[column("message")].clone()
+    };
+    let run = meshvet(tree.path(), &["scan", "--csv", "-", "--config", "budget.toml"]);
+    let cut = rows(&run.stdout);
+    assert!(message(&cut, "slivers.obj").contains(note), "{cut:?}");
+    assert!(!message(&cut, "good.obj").contains(note));
+    let run = meshvet(tree.path(), &["scan", "--csv", "-"]);
+    let full = rows(&run.stdout);
+    assert!(!message(&full, "slivers.obj").contains(note), "{full:?}");
+    assert_eq!(message(&full, "slivers.obj"), "400 holes");
+}
+
 #[test]
 fn a_named_file_with_another_extension_is_an_error_row_not_silence() {
     let tree = Tree::new(&[("notes.txt", "hello")]);

@@ -37,6 +37,7 @@ fn all_pairs(mesh: &Mesh) -> Intersections {
     let search = Search {
         kept_pairs: usize::MAX,
         first_only: false,
+        ..Search::default()
     };
     intersections(mesh, &search)
 }
@@ -241,6 +242,7 @@ fn soup_cap_and_first_pair() {
         &Search {
             kept_pairs: 3,
             first_only: false,
+            ..Search::default()
         },
     );
     assert_eq!(capped.self_intersections, every.self_intersections);
@@ -252,10 +254,76 @@ fn soup_cap_and_first_pair() {
         &Search {
             kept_pairs: 10,
             first_only: true,
+            ..Search::default()
         },
     );
     assert!(first.stopped);
     assert!(first.self_intersections >= 1 && !first.pairs.is_empty());
+}
+
+/// `n` separate triangles through the z axis, one per angle `t`: (2c, 2s, 0), (-c, -s, 1),
+/// (-c, -s, -1) with `c, s` the cosine and sine of `t`. The first point is exactly -2 times the
+/// midpoint (-c, -s, 0) of the other two (doubling and negating are exact), so every triangle
+/// holds the origin inside; no two share a vertex, so every pair meets: `n (n - 1) / 2` pairs of
+/// parts.
+fn pages_through_an_axis(n: usize) -> Mesh {
+    let mut positions = Vec::new();
+    for i in 0..n {
+        let t = std::f64::consts::PI * i as f64 / n as f64;
+        let (c, s) = (t.cos(), t.sin());
+        positions.extend([[2.0 * c, 2.0 * s, 0.0], [-c, -s, 1.0], [-c, -s, -1.0]]);
+    }
+    let triangles = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    Mesh::new(positions, triangles)
+}
+
+/// `n` separate long triangles (0, y, d), (1, y, 1 + d), (1/2, y + 1/64, 1/2 + d) with
+/// `d = i / 1024` and `y = i / 2^20`: each lies in the plane `z - x = d` of its own, so none meet,
+/// but every box spans x 0..1, z d..1 + d and y y..y + 1/64, so every pair's boxes overlap.
+fn pile_of_slivers(n: usize) -> Mesh {
+    let mut positions = Vec::new();
+    for i in 0..n {
+        let (d, y) = (i as f64 / 1024.0, i as f64 / (1 << 20) as f64);
+        positions.extend([
+            [0.0, y, d],
+            [1.0, y, 1.0 + d],
+            [0.5, y + 1.0 / 64.0, 0.5 + d],
+        ]);
+    }
+    let triangles = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    Mesh::new(positions, triangles)
+}
+
+/// The search stops at its budget: past the pairs of faces it may look at (400 slivers make
+/// 79,800 pairs of overlapping boxes, over the 65,536 that a budget of one pair a face allows a
+/// small mesh), and past the pairs of parts it may hold (a budget under 128 holds none, so the
+/// 200 pages' 19,900 pairs of parts stop it at its first tidy). Within the default budget both
+/// searches finish with the hand-counted answers.
+#[test]
+fn the_search_stops_at_its_budget_and_says_so() {
+    let budget = |pair_budget| Search {
+        pair_budget,
+        ..Search::default()
+    };
+    let slivers = pile_of_slivers(400);
+    let full = meet(&slivers);
+    assert_eq!(counts(&full), (0, 0, 0, 0));
+    assert!(!full.stopped);
+    let cut = intersections(&slivers, &budget(1));
+    assert!(cut.stopped);
+    assert_eq!(counts(&cut), (0, 0, 0, 0));
+
+    let pages = pages_through_an_axis(200);
+    let full = meet(&pages);
+    assert_eq!(
+        (full.pairs_between, full.intersecting_components()),
+        (19_900, 19_900)
+    );
+    assert_eq!((full.self_intersections, full.involved_faces()), (0, 200));
+    assert!(!full.stopped);
+    let cut = intersections(&pages, &budget(64));
+    assert!(cut.stopped);
+    assert!(cut.intersecting_components() > 0 && cut.intersecting_components() < 19_900);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -64,6 +64,32 @@ pub struct Search {
     /// Stop at the first pair found (a yes/no answer for a quick check); the counts are then not
     /// complete.
     pub first_only: bool,
+    /// How much the search may do, per face of the mesh (a mesh of fewer than
+    /// [`Search::FLOOR_FACES`] faces counts as that many): it looks at most `pair_budget` pairs of
+    /// faces whose boxes overlap per face, and holds at most `pair_budget / 128` pairs of parts
+    /// that meet per face. Past either it stops, its counts lower bounds
+    /// ([`Intersections::stopped`]). Real meshes stay far below (the corpus's worst, a CAD plate
+    /// of long slivers, looks at 42 pairs a face); without it, a file of long faces piled on one
+    /// another takes time, and a file of parts piled on one another memory, that grow with the
+    /// square of its faces (20,000 random triangles: 55 million pairs of parts that meet).
+    pub pair_budget: u64,
+}
+
+impl Search {
+    /// The fewest faces the budget counts a mesh as having: a small mesh may look at 67 million
+    /// pairs (about two seconds on one core) with the default budget.
+    pub const FLOOR_FACES: u64 = 1 << 16;
+
+    /// The pairs of faces whose boxes overlap that the search looks at in a mesh of `faces` faces,
+    /// and the pairs of parts that meet that it holds.
+    fn limits(&self, faces: usize) -> (u64, usize) {
+        let faces = (faces as u64).max(Self::FLOOR_FACES);
+        let held = (self.pair_budget / 128).saturating_mul(faces);
+        (
+            self.pair_budget.saturating_mul(faces),
+            usize::try_from(held).unwrap_or(usize::MAX),
+        )
+    }
 }
 
 impl Default for Search {
@@ -71,6 +97,7 @@ impl Default for Search {
         Search {
             kept_pairs: 100,
             first_only: false,
+            pair_budget: 1024,
         }
     }
 }
@@ -87,7 +114,8 @@ pub struct Intersections {
     /// The lowest pairs `[f, g]` (`f < g`, sorted) of faces that meet, within or between components,
     /// at most [`Search::kept_pairs`] of them.
     pub pairs: Vec<[u32; 2]>,
-    /// The search stopped at its first pair ([`Search::first_only`]): the counts are not complete.
+    /// The search stopped at its first pair ([`Search::first_only`]) or at its budget
+    /// ([`Search::pair_budget`]): the counts are lower bounds.
     pub stopped: bool,
     /// One bit per face: the face meets another.
     involved: Vec<u64>,
@@ -230,6 +258,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         .map(|_| AtomicU64::new(0))
         .collect();
     let stop = AtomicBool::new(false);
+    let (budget, held) = search.limits(nt);
     let shared = Shared {
         points,
         surface,
@@ -239,10 +268,14 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         involved: &involved,
         stop: &stop,
         search: *search,
+        spent: AtomicU64::new(0),
+        budget,
+        held,
     };
     let mut finder = Finder {
         shared: &shared,
         tally: Tally::default(),
+        looked: 0,
         row: None,
         patches: patches::Patches::new(points, surface.table, &place, &along),
     };
@@ -293,6 +326,24 @@ struct Shared<'a> {
     involved: &'a [AtomicU64],
     stop: &'a AtomicBool,
     search: Search,
+    /// Pairs looked at by every task, added in batches of [`BATCH`].
+    spent: AtomicU64,
+    /// The pairs to look at and the pairs of parts to hold before the search stops
+    /// ([`Search::pair_budget`]).
+    budget: u64,
+    held: usize,
+}
+
+/// A task adds the pairs it looked at to [`Shared::spent`] this many at a time.
+const BATCH: u64 = 1 << 12;
+
+impl Shared<'_> {
+    /// Adds `looked` pairs to the pairs spent; past the budget, stops every task.
+    fn spend(&self, looked: u64) {
+        if self.spent.fetch_add(looked, Relaxed) + looked > self.budget {
+            self.stop.store(true, Relaxed);
+        }
+    }
 }
 
 /// One task's findings.
@@ -320,6 +371,8 @@ impl Tally {
 struct Finder<'a> {
     shared: &'a Shared<'a>,
     tally: Tally,
+    /// Pairs looked at and not yet added to [`Shared::spent`].
+    looked: u64,
     /// The face of the current row of pairs and its plane.
     row: Option<(u32, meet::Plane)>,
     patches: patches::Patches<'a>,
@@ -330,6 +383,7 @@ impl Visit for Finder<'_> {
         Finder {
             shared: self.shared,
             tally: Tally::default(),
+            looked: 0,
             row: None,
             patches: self.patches.fork(),
         }
@@ -342,10 +396,22 @@ impl Visit for Finder<'_> {
         t.components.extend(o.components);
         t.pairs.extend(o.pairs);
         t.tidy(self.shared.search.kept_pairs);
+        self.looked += other.looked;
+        if self.looked >= BATCH {
+            self.shared.spend(std::mem::take(&mut self.looked));
+        }
+        if t.components_tidy > self.shared.held {
+            self.shared.stop.store(true, Relaxed);
+        }
     }
 
     fn pair(&mut self, a: u32, b: u32) {
         let s = self.shared;
+        self.looked += 1;
+        if self.looked == BATCH {
+            self.looked = 0;
+            s.spend(BATCH);
+        }
         let (ta, tb) = (s.faces[a as usize], s.faces[b as usize]);
         // Two faces of one flat region do not meet; a face of a region and a face touching it only
         // at its corners or edges are looked at below, once their points are loaded.
@@ -403,6 +469,9 @@ impl Visit for Finder<'_> {
                 t.components.sort_unstable();
                 t.components.dedup();
                 t.components_tidy = t.components.len();
+                if t.components_tidy > s.held {
+                    s.stop.store(true, Relaxed);
+                }
             }
         }
         for f in [na, nb] {
@@ -423,7 +492,7 @@ impl Visit for Finder<'_> {
     }
 
     fn done(&self) -> bool {
-        self.shared.search.first_only && self.shared.stop.load(Relaxed)
+        self.shared.stop.load(Relaxed)
     }
 
     fn no_pairs_within(&mut self, places: std::ops::Range<usize>, bits: u8) -> bool {

@@ -541,6 +541,7 @@ mod tests {
         let search = Search {
             kept_pairs: 0,
             first_only: false,
+            ..Search::default()
         };
         let found = intersect_table(points, &table, &|_| 0, 0.0, None, &search);
         (every, found.self_intersections)
