@@ -475,9 +475,14 @@ mod tests {
             Some(100)
         );
         // A later layer that sets one key keeps what an earlier one set of the other.
-        let budget = capped.merge(&parse("[intersections]
+        let budget = capped.merge(
+            &parse(
+                "[intersections]
 pair_budget = 7
-").unwrap());
+",
+            )
+            .unwrap(),
+        );
         assert_eq!(
             budget.intersections.map(|s| (s.kept_pairs, s.pair_budget)),
             Some((5, 7))

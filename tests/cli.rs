@@ -620,7 +620,10 @@ fn a_search_past_its_budget_says_its_counts_are_lower_bounds() {
         let row = rows.iter().find(|r| r[0] == path).unwrap();
         row[column("message")].clone()
     };
-    let run = meshvet(tree.path(), &["scan", "--csv", "-", "--config", "budget.toml"]);
+    let run = meshvet(
+        tree.path(),
+        &["scan", "--csv", "-", "--config", "budget.toml"],
+    );
     let cut = rows(&run.stdout);
     assert!(message(&cut, "slivers.obj").contains(note), "{cut:?}");
     assert!(!message(&cut, "good.obj").contains(note));

@@ -273,7 +273,9 @@ fn pages_through_an_axis(n: usize) -> Mesh {
         let (c, s) = (t.cos(), t.sin());
         positions.extend([[2.0 * c, 2.0 * s, 0.0], [-c, -s, 1.0], [-c, -s, -1.0]]);
     }
-    let triangles = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let triangles = (0..n as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
     Mesh::new(positions, triangles)
 }
 
@@ -290,7 +292,9 @@ fn pile_of_slivers(n: usize) -> Mesh {
             [0.5, y + 1.0 / 64.0, 0.5 + d],
         ]);
     }
-    let triangles = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let triangles = (0..n as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
     Mesh::new(positions, triangles)
 }
 

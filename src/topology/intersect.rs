@@ -242,6 +242,11 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
                 m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
             }),
             bits: stars.turns[t as usize],
+            region: if regions.is_empty() {
+                regions::NONE
+            } else {
+                regions.of(t)
+            },
         }
     });
     let along = std::mem::take(&mut stars.along);

@@ -261,33 +261,47 @@ impl<'a> Patches<'a> {
     }
 
     /// Whether the closed polygons `shadow` (point `i` is followed by `next[i]`) are simple and
-    /// apart: a sweep along x over their edges' spans, the edges whose boxes overlap tested
-    /// exactly.
+    /// apart: a sweep over their edges' spans along one axis of the shadow, the edges whose boxes
+    /// overlap tested exactly. A sweep that would compare more than [`SWEEP_WORK`] pairs of
+    /// edges a point gives up and the other axis is swept; when both give up the polygons are
+    /// not proven simple (the walk then pairs the faces as usual). Edges of one span along an
+    /// axis (a strip of walls seen from the side has all its lower edges at one height) would
+    /// otherwise make that sweep compare every pair of them.
     fn simple(&mut self) -> bool {
-        let (s, ids, next) = (&self.shadow, &self.ids, &self.next);
-        let n = s.len();
-        let edge = |i: usize| (s[i], s[next[i] as usize]);
-        let low_x = |i: usize| s[i][0].min(s[next[i] as usize][0]);
+        let (s, next) = (&self.shadow, &self.next);
         // Edges that follow each other share their common point only: not collinear going back.
-        for i in 0..n {
+        for i in 0..s.len() {
             let j = next[i] as usize;
             let (u, v, w) = (s[i], s[j], s[next[j] as usize]);
             if o2(u, v, w) == 0.0 && same_way(v, u, w) {
                 return false;
             }
         }
+        (0..2).any(|axis| self.sweep(axis) == Some(true))
+    }
+
+    /// [`Patches::simple`] by a sweep along shadow axis `axis`: `Some(false)` when two edges
+    /// meet, `None` when it gives up.
+    fn sweep(&mut self, axis: usize) -> Option<bool> {
+        let (s, ids, next) = (&self.shadow, &self.ids, &self.next);
+        let n = s.len();
+        let other = 1 - axis;
+        let edge = |i: usize| (s[i], s[next[i] as usize]);
+        let low = |i: usize| s[i][axis].min(s[next[i] as usize][axis]);
         self.by_low_x.clear();
         self.by_low_x.extend(0..n as u32);
         self.by_low_x
-            .sort_unstable_by(|&a, &b| low_x(a as usize).total_cmp(&low_x(b as usize)));
+            .sort_unstable_by(|&a, &b| low(a as usize).total_cmp(&low(b as usize)));
         self.active.clear();
+        let mut work = SWEEP_WORK.saturating_mul(n);
         for &i in &self.by_low_x {
             let (p, q) = edge(i as usize);
-            let x = low_x(i as usize);
+            let x = low(i as usize);
             self.active.retain(|&j| {
                 let (a, b) = edge(j as usize);
-                a[0].max(b[0]) >= x
+                a[axis].max(b[axis]) >= x
             });
+            work = work.checked_sub(self.active.len())?;
             for &j in &self.active {
                 if next[i as usize] == j || next[j as usize] == i {
                     continue;
@@ -300,14 +314,15 @@ impl<'a> Patches<'a> {
                     }
                 }
                 let (a, b) = edge(j as usize);
-                let apart_y = p[1].max(q[1]) < a[1].min(b[1]) || a[1].max(b[1]) < p[1].min(q[1]);
-                if !apart_y && segments_meet(p, q, a, b) {
-                    return false;
+                let apart = p[other].max(q[other]) < a[other].min(b[other])
+                    || a[other].max(b[other]) < p[other].min(q[other]);
+                if !apart && segments_meet(p, q, a, b) {
+                    return Some(false);
                 }
             }
             self.active.push(i);
         }
-        true
+        Some(true)
     }
 
     /// For simple polygons that are apart, whether no point is inside more of them (each counted
@@ -352,6 +367,10 @@ impl<'a> Patches<'a> {
 
 /// The most loops a flat patch may have (in the walk's tree nodes, whose tries mostly fail).
 const MAX_LOOPS: usize = 8;
+
+/// The most edges a sweep over a patch's loops keeps in view, summed over its steps, per point of
+/// the loops ([`Patches::simple`]); the loops of real patches keep a handful.
+const SWEEP_WORK: usize = 32;
 
 /// The winding number of the closed polygon `points` (point `i` followed by `next[i]`) around
 /// `p`, which is on none of its edges (exact: the crossings of the ray from `p` along +x).
@@ -458,6 +477,33 @@ mod tests {
         // Two pieces apart: two outer loops side by side.
         let (points, triangles) = grid(6, bumpy, |i, _| i == 3);
         assert!(flat(&points, &triangles));
+    }
+
+    /// A strip one square wide and 3,000 long (a row of walls seen from the side): its loop's
+    /// 3,000 edges on each long side share one span along x, so a sweep along x would keep all
+    /// of them in view at once (4.5 million comparisons); that sweep gives up at its work bound,
+    /// and the sweep along y proves the strip flat.
+    #[test]
+    fn a_long_strip_is_swept_along_its_length() {
+        let long = 3_000;
+        let points: Vec<Point> = (0..=long)
+            .flat_map(|j| [[0.0, f64::from(j), 0.0], [1.0, f64::from(j), 0.0]])
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..long)
+            .flat_map(|j| {
+                let (a, b, c, d) = (2 * j, 2 * j + 1, 2 * j + 3, 2 * j + 2);
+                [[a, b, c], [a, c, d]]
+            })
+            .collect();
+        let table = CornerTable::build(&triangles, points.len());
+        let place: Vec<u32> = (0..triangles.len() as u32).collect();
+        let along = flat_stars(&points, &table).along;
+        let mut patches = Patches::new(&points, &table, &place, &along);
+        let bits = turn_bits(turns(points[0], points[1], points[3]));
+        assert!(patches.is_flat(0..triangles.len(), bits, |p| p as u32));
+        assert_eq!(patches.shadow.len(), 2 * long as usize + 2);
+        assert_eq!(patches.sweep(0), None);
+        assert_eq!(patches.sweep(1), Some(true));
     }
 
     /// A small grid above a big one, inside its shadow: both loops are apart and simple, but the
