@@ -19,7 +19,11 @@
 //!   region (`regions`: faces of one plane perpendicular to an axis, joined edge to edge, that
 //!   are a flat patch; the tops and bottoms of CAD plates, whose long faces the tree cannot
 //!   separate), and the pairs of a region's face with a face that touches the region's plane only
-//!   at the region's corners or along one of its edges (the walls standing on a plate);
+//!   at the region's corners or along one of its edges (the walls standing on a plate). A tree
+//!   node whose faces all share one such vertex, or all lie in one region, is not walked pair by
+//!   pair (a fan of long faces around a cylinder's cap centre has every box overlap every other);
+//!   and the search stops at a budget per face ([`Search::pair_budget`]), its counts then lower
+//!   bounds, so no file can hold it for hours;
 //! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
 //!   come from the Corner Table's welded vertex ids.
 //!

@@ -18,8 +18,10 @@
 //! between two nodes whose boxes overlap, the pairs between their children. Every unordered pair of
 //! faces is looked at once, where the walk first separates them, except inside a node (of
 //! `LEAF << PATCH_LEVEL` faces or more, all sharing a turn bit) that the visitor finds free of
-//! pairs ([`Visit::no_pairs_within`], the flat patches), which is not walked. Near the root the three parts run as
-//! parallel tasks (`rayon::join`) on the current pool; each task adds its findings to its own
+//! pairs ([`Visit::no_pairs_within`], the flat patches), which is not walked, and except the
+//! pairs within a node, or between two nodes, whose faces all share one skipped vertex or one
+//! flat region ([`Marks`]; pairs of one region in mixed nodes are the visitor's to drop). Near
+//! the root the three parts run as parallel tasks (`rayon::join`) on the current pool; each task adds its findings to its own
 //! [`Visit`] and the tasks' findings are merged, so the answer does not depend on the thread count.
 
 use glam::{BVec4A, Vec4};
