@@ -246,11 +246,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
                 m | u8::from(stars::is_set(&stars.flat, vertices[k])) << k
             }),
             bits: stars.turns[t as usize],
-            region: if regions.is_empty() {
-                regions::NONE
-            } else {
-                regions.of(t)
-            },
+            region: regions.of(t),
         }
     });
     let along = std::mem::take(&mut stars.along);
@@ -353,6 +349,13 @@ impl Shared<'_> {
             self.stop.store(true, Relaxed);
         }
     }
+
+    /// Stops every task when one holds more distinct pairs of parts than the budget allows.
+    fn hold(&self, pairs: usize) {
+        if pairs > self.held {
+            self.stop.store(true, Relaxed);
+        }
+    }
 }
 
 /// One task's findings.
@@ -409,9 +412,7 @@ impl Visit for Finder<'_> {
         if self.looked >= BATCH {
             self.shared.spend(std::mem::take(&mut self.looked));
         }
-        if t.components_tidy > self.shared.held {
-            self.shared.stop.store(true, Relaxed);
-        }
+        self.shared.hold(t.components_tidy);
     }
 
     fn pair(&mut self, a: u32, b: u32) {
@@ -478,9 +479,7 @@ impl Visit for Finder<'_> {
                 t.components.sort_unstable();
                 t.components.dedup();
                 t.components_tidy = t.components.len();
-                if t.components_tidy > s.held {
-                    s.stop.store(true, Relaxed);
-                }
+                s.hold(t.components_tidy);
             }
         }
         for f in [na, nb] {

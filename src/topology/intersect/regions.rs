@@ -124,10 +124,11 @@ impl Regions {
         self.face.is_empty()
     }
 
-    /// The flat region of table face `t` ([`NONE`]: none); only when not [`Regions::is_empty`].
+    /// The flat region of table face `t` ([`NONE`]: none, as for every face when
+    /// [`Regions::is_empty`]).
     #[inline]
     pub(super) fn of(&self, t: u32) -> u32 {
-        self.face[t as usize]
+        self.face.get(t as usize).copied().unwrap_or(NONE)
     }
 
     /// Whether vertex `v` is a corner of a face of region `r`.

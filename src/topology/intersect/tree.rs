@@ -21,8 +21,9 @@
 //! pairs ([`Visit::no_pairs_within`], the flat patches), which is not walked, and except the
 //! pairs within a node, or between two nodes, whose faces all share one skipped vertex or one
 //! flat region ([`Marks`]; pairs of one region in mixed nodes are the visitor's to drop). Near
-//! the root the three parts run as parallel tasks (`rayon::join`) on the current pool; each task adds its findings to its own
-//! [`Visit`] and the tasks' findings are merged, so the answer does not depend on the thread count.
+//! the root the three parts run as parallel tasks (`rayon::join`) on the current pool; each task
+//! adds its findings to its own [`Visit`] and the tasks' findings are merged, so the answer does
+//! not depend on the thread count.
 
 use glam::{BVec4A, Vec4};
 
@@ -333,6 +334,18 @@ pub(super) struct Placed {
 /// report, and a node with either has none within.
 type Marks = [u32; 2];
 
+/// The vertices of `vertices` that bit `k` of `bits` marks as skipped, [`NONE`] for the others.
+#[inline]
+fn skipped_of(bits: u8, vertices: [u32; 3]) -> [u32; 3] {
+    std::array::from_fn(|k| {
+        if bits & (1 << k) != 0 {
+            vertices[k]
+        } else {
+            NONE
+        }
+    })
+}
+
 /// The marks of a node made of two nodes.
 fn join_marks(a: Marks, b: Marks) -> Marks {
     std::array::from_fn(|i| if a[i] == b[i] { a[i] } else { NONE })
@@ -379,13 +392,7 @@ impl Tree {
                 let mut boxes = first.bounds.map(|x| [x; LEAF]);
                 let mut all = u8::MAX;
                 // The first face's skipped vertices, kept while every face has them.
-                let mut hubs: [u32; 3] = std::array::from_fn(|k| {
-                    if first.skipped & (1 << k) != 0 {
-                        first.vertices[k]
-                    } else {
-                        NONE
-                    }
-                });
+                let mut hubs = skipped_of(first.skipped, first.vertices);
                 let mut region = first.region;
                 for j in 0..LEAF.min(n - LEAF * l) {
                     let f = if j == 0 { first } else { face(LEAF * l + j) };
@@ -464,13 +471,7 @@ impl Tree {
         if bits == 0 {
             return hits;
         }
-        let skipped: [u32; 3] = std::array::from_fn(|k| {
-            if bits & (1 << k) != 0 {
-                other.vertices[k][f]
-            } else {
-                NONE
-            }
-        });
+        let skipped = skipped_of(bits, std::array::from_fn(|k| other.vertices[k][f]));
         // Few boxes overlap: test their faces one by one.
         let mut pairs = hits;
         while hits != 0 {
