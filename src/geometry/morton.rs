@@ -16,30 +16,49 @@ pub(crate) fn order(n: usize, centre: impl Fn(usize) -> [f32; 3] + Sync) -> Vec<
             hi[k] = hi[k].max(c[k]);
         }
     }
-    let scale: [f32; 3] = std::array::from_fn(|k| {
-        let extent = hi[k] - lo[k];
-        if extent > 0.0 && extent.is_finite() {
-            1023.0 / extent
-        } else {
-            0.0
-        }
-    });
+    let grid = Grid::new(lo, hi);
     let mut keys: Vec<u64> = (0..n)
         .into_par_iter()
         .with_min_len(1 << 14)
-        .map(|i| {
-            let c = centre(i);
-            let cell = |k: usize| {
-                let x = (c[k] - lo[k]) * scale[k];
-                // NaN (an infinite box) and out-of-range values clamp into the grid.
-                (x.clamp(0.0, 1023.0) as u32).min(1023)
-            };
-            let code = spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2;
-            u64::from(code) << 32 | i as u64
-        })
+        .map(|i| grid.key(centre(i), i as u32))
         .collect();
-    radix_sort_high(&mut keys);
+    sort_keys(&mut keys);
     keys.iter().map(|&k| k as u32).collect()
+}
+
+/// A grid of 1024 cells a side over a box, numbering its cells along a Morton curve.
+#[derive(Clone, Copy)]
+pub(crate) struct Grid {
+    lo: [f32; 3],
+    scale: [f32; 3],
+}
+
+impl Grid {
+    /// The grid over the box from `lo` to `hi` (an empty or infinite extent: one cell that way).
+    pub(crate) fn new(lo: [f32; 3], hi: [f32; 3]) -> Grid {
+        let scale = std::array::from_fn(|k| {
+            let extent = hi[k] - lo[k];
+            if extent > 0.0 && extent.is_finite() {
+                1023.0 / extent
+            } else {
+                0.0
+            }
+        });
+        Grid { lo, scale }
+    }
+
+    /// The sort key of item `id` at point `c`: the Morton code of its cell in the high 32 bits,
+    /// `id` in the low ones ([`sort_keys`] orders by the code and keeps ties in their order).
+    /// A point outside the box (or NaN) counts as in the nearest cell.
+    #[inline]
+    pub(crate) fn key(&self, c: [f32; 3], id: u32) -> u64 {
+        let cell = |k: usize| {
+            let x = (c[k] - self.lo[k]) * self.scale[k];
+            (x.clamp(0.0, 1023.0) as u32).min(1023)
+        };
+        let code = spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2;
+        u64::from(code) << 32 | u64::from(id)
+    }
 }
 
 /// The 10 low bits of `x`, two zero bits after each.
@@ -52,24 +71,36 @@ fn spread(x: u32) -> u32 {
     x
 }
 
-/// Stable sort of `keys` by their bits 32..62 (three passes of ten bits).
-fn radix_sort_high(keys: &mut Vec<u64>) {
-    let mut other = vec![0u64; keys.len()];
-    for pass in 0..3 {
-        let shift = 32 + 10 * pass;
-        let digit = |k: u64| ((k >> shift) & 0x3ff) as usize;
-        let mut start = [0usize; 1025];
-        for &k in keys.iter() {
-            start[digit(k) + 1] += 1;
+/// Stable sort of `keys` by their bits 32..62, the codes [`Grid::key`] puts there (three passes
+/// of ten bits, their counts taken in one read of the keys).
+pub(crate) fn sort_keys(keys: &mut Vec<u64>) {
+    const PASSES: usize = 3;
+    let digit = |k: u64, pass: usize| ((k >> (32 + 10 * pass)) & 0x3ff) as usize;
+    let mut starts = vec![[0usize; 1025]; PASSES];
+    for &k in keys.iter() {
+        for (pass, start) in starts.iter_mut().enumerate() {
+            start[digit(k, pass) + 1] += 1;
+        }
+    }
+    let mut other = Vec::with_capacity(keys.len());
+    for (pass, start) in starts.iter_mut().enumerate() {
+        // A digit every key shares moves nothing.
+        if start.contains(&keys.len()) {
+            continue;
         }
         for i in 0..1024 {
             start[i + 1] += start[i];
         }
+        other.clear();
+        let spare = &mut other.spare_capacity_mut()[..keys.len()];
         for &k in keys.iter() {
-            let slot = &mut start[digit(k)];
-            other[*slot] = k;
+            let slot = &mut start[digit(k, pass)];
+            spare[*slot].write(k);
             *slot += 1;
         }
+        // SAFETY: the counts of the digits sum to `keys.len()`, so the slots written above are
+        // each of `0..keys.len()` once.
+        unsafe { other.set_len(keys.len()) };
         std::mem::swap(keys, &mut other);
     }
 }
@@ -79,23 +110,35 @@ mod tests {
     use super::*;
 
     /// The radix sort is a stable sort by the code in the high bits: random codes with many ties
-    /// (few distinct ones per digit), the index below, as `order` makes them.
+    /// (few distinct ones per digit), an id below, as [`Grid::key`] makes them.
     #[test]
     fn radix_sort_is_stable_by_code() {
         let mut bits = crate::geometry::xorshift(0x51ed_2701_9b3a_c4e5);
-        for size in [0, 1, 7, 1000, 70_000] {
-            let mut keys: Vec<u64> = (0..size as u64)
-                .map(|i| {
-                    let r = bits();
-                    // Each ten-bit digit takes one of four values, so ties are common.
-                    let code = (0..3).fold(0u64, |c, d| c | ((r >> (8 * d)) & 3) << (10 * d + 3));
-                    code << 32 | i
-                })
-                .collect();
-            let mut expected = keys.clone();
-            expected.sort_by_key(|k| k >> 32);
-            radix_sort_high(&mut keys);
-            assert_eq!(keys, expected, "{size} keys");
+        // Digits left varying: all three, or one or two of them (the passes of the others,
+        // where every key has the same digit, are skipped).
+        for varying in [0b111, 0b101, 0b010, 0b100] {
+            for size in [0, 1, 7, 1000, 70_000] {
+                let mut keys: Vec<u64> = (0..size as u64)
+                    .map(|i| {
+                        let r = bits();
+                        // Each varying ten-bit digit takes one of four values, so ties are
+                        // common; the others are all 5.
+                        let code = (0..3).fold(0u64, |c, d| {
+                            let digit = if varying >> d & 1 == 1 {
+                                ((r >> (8 * d)) & 3) << 3
+                            } else {
+                                5
+                            };
+                            c | digit << (10 * d)
+                        });
+                        code << 32 | (i * 7919 % (size as u64).max(1))
+                    })
+                    .collect();
+                let mut expected = keys.clone();
+                expected.sort_by_key(|k| k >> 32);
+                sort_keys(&mut keys);
+                assert_eq!(keys, expected, "{size} keys, digits {varying:03b}");
+            }
         }
     }
 }

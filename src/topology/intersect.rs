@@ -38,8 +38,6 @@ mod tree;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
-use rayon::prelude::*;
-
 use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
 use crate::geometry::morton;
@@ -210,30 +208,25 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     // Pairs within a flat region (faces of one plane that tile it once) are skipped as found.
     let regions = regions::flat_regions(points, surface.table, &stars.turns, &stars.along);
 
-    // The table faces kept and their box centres, in table order (the analysis sorts faces by
-    // vertex, so this reads points nearly in order), in one loop on one thread: runs gathered on
-    // every thread and joined were no quicker on two threads (the loop is bound by memory). The
-    // boxes are not kept: each is computed once more, into the tree, which costs less than
-    // holding 24 bytes a face beside it.
-    let mut kept: Vec<u32> = Vec::with_capacity(nt);
-    let mut centres: Vec<[f32; 3]> = Vec::with_capacity(nt);
+    // The table faces kept, sorted along a Morton curve of their box centres over the points'
+    // box: keys made in table order (the analysis sorts faces by vertex, so this reads points
+    // nearly in order) in one loop on one thread, since runs gathered on every thread and joined
+    // were no quicker on two threads (the loop is bound by memory). The boxes are not kept: each
+    // is computed once more, into the tree, which costs less than holding 24 bytes a face beside
+    // it.
+    let grid = points_grid(points);
+    let mut keys: Vec<u64> = Vec::with_capacity(nt);
     for t in 0..nt as u32 {
         // The zero-area bound is the mesh's own: measure the face in its own coordinates.
         let [a, b, c] = triangles[t as usize].map(|v| surface.points[v as usize]);
         if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
-            kept.push(t);
-            centres.push(tree::centre(&box_at(t)));
+            keys.push(grid.key(tree::centre(&box_at(t)), t));
         }
     }
-    let order = morton::order(kept.len(), |i| centres[i]);
-    drop(centres);
+    morton::sort_keys(&mut keys);
     // The table face at each place of the sorted order.
-    let faces: Vec<u32> = order
-        .par_iter()
-        .with_min_len(1 << 14)
-        .map(|&i| kept[i as usize])
-        .collect();
-    drop((kept, order));
+    let faces: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
+    drop(keys);
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
     // walk skips those pairs.
     let tree = Tree::build(faces.len(), |p| {
@@ -296,6 +289,20 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         stopped: stop.load(Relaxed),
         involved: involved.into_iter().map(AtomicU64::into_inner).collect(),
     }
+}
+
+/// The Morton grid over the box of `points` (in `f32`, rounded outward; the grid clamps what
+/// falls outside, so rounding only moves a face to a neighbouring cell).
+fn points_grid(points: &[[f64; 3]]) -> morton::Grid {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points.iter().filter(|p| p.iter().all(|x| x.is_finite())) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    morton::Grid::new(lo.map(|x| x as f32), hi.map(|x| x as f32))
 }
 
 /// The points times a power of two that brings the largest coordinate near 1, when it is beyond
