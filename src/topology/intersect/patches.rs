@@ -45,6 +45,7 @@ use std::cmp::Ordering;
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 
 use super::meet::{o2, strictly_opposite, Axes, Point, AXES};
+use super::prefetch;
 
 /// Bits of a face's turn: bit `2k`, counter-clockwise when coordinate `k` is dropped; bit
 /// `2k + 1`, clockwise. A set can be a flat patch along `k` only when all its faces share one of
@@ -145,7 +146,23 @@ impl<'a> Patches<'a> {
         let (lo, hi) = (places.start as u32, places.end as u32);
         let table = self.table;
         self.edges.clear();
+        // The faces' rows are scattered in the table: fetch ahead the rows of a face 16 places on
+        // and the places of the neighbours of a face 8 on (whose rows came 8 faces ago).
+        let (triangles, opposites) = (table.triangles(), table.opposites());
         for p in places {
+            if p + 16 < hi as usize {
+                let u = face(p + 16) as usize;
+                prefetch(&triangles[u]);
+                prefetch(&opposites[3 * u]);
+            }
+            if p + 8 < hi as usize {
+                let u = face(p + 8) as usize;
+                for &o in &opposites[3 * u..3 * u + 3] {
+                    if let Some(q) = self.place.get(CornerTable::t(o) as usize) {
+                        prefetch(q);
+                    }
+                }
+            }
             let t = face(p);
             let tri = table.triangles()[t as usize];
             for j in 0..3 {
