@@ -140,23 +140,32 @@ fn along_own_axes(points: &[Point], table: &CornerTable, candidates: &[u32], fla
     for (i, &v) in candidates.iter().enumerate() {
         slot[v as usize] = i as u32;
     }
+    // The candidates' corners, in face order: (face, corner, candidate). Found by their ids
+    // alone; points are read for these only (a smooth scan has a handful of candidates).
+    let corners: Vec<(usize, usize, usize)> = triangles
+        .iter()
+        .enumerate()
+        .flat_map(|(t, tri)| {
+            let slot = &slot;
+            (0..3).filter_map(move |j| {
+                let i = slot[tri[j] as usize];
+                (i != u32::MAX).then_some((t, j, i as usize))
+            })
+        })
+        .collect();
+    let at = |t: usize| triangles[t].map(|v| points[v as usize]);
     // The candidates' directions: the sums of their faces' normals, and the sums of their spokes'
     // lengths (floating point; only which way they point matters, and not even that for
     // exactness).
     let mut normal = vec![([0.0f64; 3], 0.0f64); candidates.len()];
-    for tri in triangles {
-        let p = tri.map(|v| points[v as usize]);
+    for &(t, j, i) in &corners {
+        let p = at(t);
         let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-        for j in 0..3 {
-            let i = slot[tri[j] as usize];
-            if i != u32::MAX {
-                let (sum, length) = &mut normal[i as usize];
-                for k in 0..3 {
-                    sum[k] += n[k];
-                }
-                *length += norm(sub(p[(j + 1) % 3], p[j]));
-            }
+        let (sum, length) = &mut normal[i];
+        for k in 0..3 {
+            sum[k] += n[k];
         }
+        *length += norm(sub(p[(j + 1) % 3], p[j]));
     }
     // A frame that is not finite (a normal too small for its spokes) leaves its vertex as it is.
     let frames: Vec<Option<(Point, Point)>> = candidates
@@ -177,27 +186,24 @@ fn along_own_axes(points: &[Point], table: &CornerTable, candidates: &[u32], fla
         })
         .collect();
     let mut state = vec![0u16; candidates.len()];
-    for tri in triangles {
-        let p = tri.map(|v| points[v as usize]);
-        for j in 0..3 {
-            let i = slot[tri[j] as usize];
-            let Some((e, h)) = frames.get(i as usize).copied().flatten() else {
-                continue;
-            };
-            let (v, a, b) = (p[j], p[(j + 1) % 3], p[(j + 2) % 3]);
-            let turn = o3(v, a, b, e);
-            let (sa, sb) = (o3(v, e, h, a), o3(v, e, h, b));
-            let (bits, crosses) = if turn > 0.0 {
-                (COUNTER, sa <= 0.0 && 0.0 < sb)
-            } else if turn < 0.0 {
-                (CLOCKWISE, sb <= 0.0 && 0.0 < sa)
-            } else {
-                (ZERO, false)
-            };
-            let add = bits | if crosses { ONE } else { 0 };
-            let s = &mut state[i as usize];
-            *s |= add | (*s & add & ONE) << 1;
-        }
+    for &(t, j, i) in &corners {
+        let Some((e, h)) = frames[i] else {
+            continue;
+        };
+        let p = at(t);
+        let (v, a, b) = (p[j], p[(j + 1) % 3], p[(j + 2) % 3]);
+        let turn = o3(v, a, b, e);
+        let (sa, sb) = (o3(v, e, h, a), o3(v, e, h, b));
+        let (bits, crosses) = if turn > 0.0 {
+            (COUNTER, sa <= 0.0 && 0.0 < sb)
+        } else if turn < 0.0 {
+            (CLOCKWISE, sb <= 0.0 && 0.0 < sa)
+        } else {
+            (ZERO, false)
+        };
+        let add = bits | if crosses { ONE } else { 0 };
+        let s = &mut state[i];
+        *s |= add | (*s & add & ONE) << 1;
     }
     for ((&v, &s), frame) in candidates.iter().zip(&state).zip(&frames) {
         if frame.is_some() && once_around(s) {
