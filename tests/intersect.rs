@@ -279,6 +279,26 @@ fn pages_through_an_axis(n: usize) -> Mesh {
     Mesh::new(positions, triangles)
 }
 
+/// 60 pages make 1,770 pairs of parts, enough that a search keeping 5 cuts its list many times
+/// as it goes: what it keeps is still the lowest 5 of every pair, and the counts stay whole.
+#[test]
+fn a_search_keeping_few_pairs_keeps_the_lowest_of_many() {
+    let pages = pages_through_an_axis(60);
+    let every = all_pairs(&pages);
+    assert_eq!(every.pairs_between, 1_770);
+    assert_eq!(every.pairs.len(), 1_770);
+    let capped = intersections(
+        &pages,
+        &Search {
+            kept_pairs: 5,
+            ..Search::default()
+        },
+    );
+    assert_eq!(capped.pairs_between, 1_770);
+    assert_eq!(capped.pairs, every.pairs[..5].to_vec());
+    assert_eq!(capped.pairs, [[0, 1], [0, 2], [0, 3], [0, 4], [0, 5]]);
+}
+
 /// `n` separate long triangles (0, y, d), (1, y, 1 + d), (1/2, y + 1/64, 1/2 + d) with
 /// `d = i / 1024` and `y = i / 2^20`: each lies in the plane `z - x = d` of its own, so none meet,
 /// but every box spans x 0..1, z d..1 + d and y y..y + 1/64, so every pair's boxes overlap.

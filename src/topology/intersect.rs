@@ -524,7 +524,8 @@ impl Visit for Finder<'_> {
             let (f, g) = (na, nb);
             t.pairs.push([f.min(g), f.max(g)]);
             if t.pairs.len() >= kept.max(256).saturating_mul(2) {
-                t.pairs.sort_unstable();
+                // The lowest `kept`, in any order (the final tidy sorts them).
+                t.pairs.select_nth_unstable(kept);
                 t.pairs.truncate(kept);
             }
         }
