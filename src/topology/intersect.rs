@@ -228,10 +228,10 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let faces: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
     drop(keys);
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
-    // walk skips those pairs.
-    // The faces come in Morton order, their table rows and points scattered in memory: each face
-    // fetches ahead the rows of a face two leaves on and the points of the face one leaf on
-    // (whose row it fetched a leaf ago), so those loads overlap instead of stalling one by one.
+    // walk skips those pairs. The faces come in Morton order, their table rows and points
+    // scattered in memory: each face fetches ahead the rows of a face two leaves on and the points
+    // of the face one leaf on (whose row it fetched a leaf ago), so those loads overlap instead of
+    // stalling one by one.
     let tree = Tree::build(faces.len(), |p| {
         if let Some(&u) = faces.get(p + 16) {
             prefetch(&triangles[u as usize]);
