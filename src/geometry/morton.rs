@@ -56,13 +56,25 @@ impl Grid {
             let x = (c[k] - self.lo[k]) * self.scale[k];
             (x.clamp(0.0, 1023.0) as u32).min(1023)
         };
-        let code = spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2;
+        let spread = |k: usize| SPREAD[cell(k) as usize];
+        let code = spread(0) | spread(1) << 1 | spread(2) << 2;
         u64::from(code) << 32 | u64::from(id)
     }
 }
 
+/// [`spread`] of every cell number, looked up (4 KiB) rather than computed per point.
+static SPREAD: [u32; 1024] = {
+    let mut table = [0; 1024];
+    let mut x = 0;
+    while x < 1024 {
+        table[x] = spread(x as u32);
+        x += 1;
+    }
+    table
+};
+
 /// The 10 low bits of `x`, two zero bits after each.
-fn spread(x: u32) -> u32 {
+const fn spread(x: u32) -> u32 {
     let mut x = x & 0x3ff;
     x = (x | x << 16) & 0x030000ff;
     x = (x | x << 8) & 0x0300f00f;
@@ -108,6 +120,24 @@ pub(crate) fn sort_keys(keys: &mut Vec<u64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// On a grid over 0..=1023 a point's cell is its coordinates, and the code interleaves their
+    /// bits: x's bit i at 3i, y's at 3i + 1, z's at 3i + 2. Points outside clamp to the border.
+    #[test]
+    fn keys_interleave_the_cells_bits() {
+        let grid = Grid::new([0.0; 3], [1023.0; 3]);
+        let code = |c: [f32; 3]| grid.key(c, 7) >> 32;
+        assert_eq!(grid.key([0.0; 3], 7), 7);
+        assert_eq!(code([1.0, 0.0, 0.0]), 1);
+        assert_eq!(code([0.0, 1.0, 0.0]), 2);
+        assert_eq!(code([0.0, 0.0, 1.0]), 4);
+        assert_eq!(code([2.0, 0.0, 0.0]), 8);
+        // x = 101, y = 011: bits (z y x) from the lowest: 011, 010, 001.
+        assert_eq!(code([5.0, 3.0, 0.0]), 0b001_010_011);
+        assert_eq!(code([512.0, 0.0, 512.0]), 0b101 << 27);
+        assert_eq!(code([1023.0; 3]), (1 << 30) - 1);
+        assert_eq!(code([-5.0, 2000.0, f32::NAN]), code([0.0, 1023.0, 0.0]));
+    }
 
     /// The radix sort is a stable sort by the code in the high bits: random codes with many ties
     /// (few distinct ones per digit), an id below, as [`Grid::key`] makes them.

@@ -220,7 +220,13 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         // The zero-area bound is the mesh's own: measure the face in its own coordinates.
         let [a, b, c] = triangles[t as usize].map(|v| surface.points[v as usize]);
         if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
-            keys.push(grid.key(tree::centre(&box_at(t)), t));
+            // The middle of the face's box (any point near the face orders it as well).
+            let p = corners(t);
+            let middle = std::array::from_fn(|k| {
+                let (x, y, z) = (p[0][k], p[1][k], p[2][k]);
+                (0.5 * (x.min(y).min(z) + x.max(y).max(z))) as f32
+            });
+            keys.push(grid.key(middle, t));
         }
     }
     morton::sort_keys(&mut keys);

@@ -113,8 +113,9 @@ fn levels_above<T: Copy>(leaves: Vec<T>, join: impl Fn(T, T) -> T) -> Vec<Vec<T>
     levels
 }
 
-/// The centre of a box, the point the faces are sorted by along a Morton curve.
-pub(super) fn centre(b: &Box3) -> [f32; 3] {
+/// The centre of a box.
+#[cfg(test)]
+fn centre(b: &Box3) -> [f32; 3] {
     std::array::from_fn(|k| 0.5 * b[k] + 0.5 * b[k + 3])
 }
 
