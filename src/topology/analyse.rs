@@ -157,10 +157,13 @@ fn analyse_built(
         patches: &patches,
     };
     let fans_pass = || {
-        let fans = walk_fans(table, &component_of, runs);
+        let mut fans = walk_fans(table, &component_of, runs);
         count_per_component(&mut components, &fans, &inconsistent, component_of);
         let shells_pass = || shells(&faces, &component_of, &components, &fans.fans);
         let (shells, face_counts) = side_by_side(big, shells_pass, faces_pass);
+        // The list of fans (8 bytes a vertex) is the shells' alone: freed before the search for
+        // faces that meet, where a one-thread analysis holds the most memory.
+        fans.fans = Vec::new();
         (fans, components, shells, face_counts)
     };
     let search_pass = || {
