@@ -49,7 +49,7 @@ impl Grid {
 
     /// The sort key of item `id` at point `c`: the Morton code of its cell in the high 32 bits,
     /// `id` in the low ones ([`sort_keys`] orders by the code and keeps ties in their order).
-    /// A point outside the box (or NaN) counts as in the nearest cell.
+    /// A point outside the box counts as in the nearest cell; a NaN coordinate as 0.
     #[inline]
     pub(crate) fn key(&self, c: [f32; 3], id: u32) -> u64 {
         let cell = |k: usize| {

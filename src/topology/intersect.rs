@@ -324,8 +324,9 @@ fn prefetch<T>(x: &T) {
     let _ = x;
 }
 
-/// The Morton grid over the box of `points` (in `f32`, rounded outward; the grid clamps what
-/// falls outside, so rounding only moves a face to a neighbouring cell).
+/// The Morton grid over the box of the finite `points`, in `f32` (rounded to nearest: the grid
+/// counts a point just outside as in the border cell, so rounding only moves a face to a
+/// neighbouring cell).
 fn points_grid(points: &[[f64; 3]]) -> morton::Grid {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
