@@ -7,16 +7,7 @@ use rayon::prelude::*;
 /// The order of `n` points (`centre(i)` the i-th) along a Morton curve over their bounding box,
 /// 1024 cells a side; points in one cell keep their order.
 pub(crate) fn order(n: usize, centre: impl Fn(usize) -> [f32; 3] + Sync) -> Vec<u32> {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for i in 0..n {
-        let c = centre(i);
-        for k in 0..3 {
-            lo[k] = lo[k].min(c[k]);
-            hi[k] = hi[k].max(c[k]);
-        }
-    }
-    let grid = Grid::new(lo, hi);
+    let grid = Grid::around((0..n).map(&centre));
     let mut keys: Vec<u64> = (0..n)
         .into_par_iter()
         .with_min_len(1 << 14)
@@ -45,6 +36,19 @@ impl Grid {
             }
         });
         Grid { lo, scale }
+    }
+
+    /// The grid over the bounding box of `points` (NaN coordinates left out).
+    pub(crate) fn around(points: impl Iterator<Item = [f32; 3]>) -> Grid {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for c in points {
+            for k in 0..3 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+        }
+        Grid::new(lo, hi)
     }
 
     /// The sort key of item `id` at point `c`: the Morton code of its cell in the high 32 bits,

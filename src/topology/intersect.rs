@@ -218,10 +218,11 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let mut keys: Vec<u64> = Vec::with_capacity(nt);
     for t in 0..nt as u32 {
         // The zero-area bound is the mesh's own: measure the face in its own coordinates.
-        let [a, b, c] = triangles[t as usize].map(|v| surface.points[v as usize]);
+        let own = triangles[t as usize].map(|v| surface.points[v as usize]);
+        let [a, b, c] = own;
         if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
             // The middle of the face's box (any point near the face orders it as well).
-            let p = corners(t);
+            let p = if scaled.is_some() { corners(t) } else { own };
             let middle = std::array::from_fn(|k| {
                 let (x, y, z) = (p[0][k], p[1][k], p[2][k]);
                 (0.5 * (x.min(y).min(z) + x.max(y).max(z))) as f32
@@ -328,15 +329,8 @@ fn prefetch<T>(x: &T) {
 /// counts a point just outside as in the border cell, so rounding only moves a face to a
 /// neighbouring cell).
 fn points_grid(points: &[[f64; 3]]) -> morton::Grid {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points.iter().filter(|p| p.iter().all(|x| x.is_finite())) {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    morton::Grid::new(lo.map(|x| x as f32), hi.map(|x| x as f32))
+    let finite = points.iter().filter(|p| p.iter().all(|x| x.is_finite()));
+    morton::Grid::around(finite.map(|p| p.map(|x| x as f32)))
 }
 
 /// The points times a power of two that brings the largest coordinate near 1, when it is beyond

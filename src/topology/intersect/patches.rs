@@ -164,7 +164,7 @@ impl<'a> Patches<'a> {
                 }
             }
             let t = face(p);
-            let tri = table.triangles()[t as usize];
+            let tri = triangles[t as usize];
             for j in 0..3 {
                 let c = 3 * t + j as u32;
                 let o = table.o(c);
