@@ -260,6 +260,8 @@ fn corpus_files() {
         "common3d/ogre.obj",
         "trimesh/featuretype.STL",
         "manifold/thingi10k_raw/1514499.stl",
+        // A real scan, smooth and closed (268k faces, none meeting): the CGAL comparison's case.
+        "common3d/igea.ply",
     ] {
         if !wanted(file) {
             continue;

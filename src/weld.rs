@@ -7,7 +7,8 @@
 //! radix sort (one pass on the top byte into 256 buckets, then each bucket, small enough to stay in
 //! cache, by the other three bytes). Equal positions end up side by side with their indices
 //! rising, so the first of each run of equal positions is the vertex the others weld onto; only
-//! runs of two or more keys read positions again (to tell equal positions from hash collisions).
+//! runs of two or more keys read positions again (to tell equal positions from hash collisions),
+//! fetched a few dozen keys ahead since a soup's copies of a vertex lie far apart in its input.
 //! A last pass in input order numbers the first vertices and gives the others their first's number.
 //! Every step but that numbering splits into independent pieces, so [`weld_parallel`] runs them on
 //! every thread of the current rayon pool and gives the same [`Welded`].
@@ -16,6 +17,8 @@ use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
+
+use crate::pages::prefetch;
 
 /// The welded index of an input vertex with a NaN or infinite coordinate.
 pub const INVALID: u32 = u32::MAX;
@@ -121,9 +124,26 @@ fn weld_exact(positions: &[[f64; 3]], parallel: bool) -> Welded {
     let invalid = n - keys.len();
     let (keys, buckets) = sort_keys(keys, parallel);
 
-    // Runs of equal hashes never cross a bucket (the bucket is the hash's top byte).
+    // Runs of equal hashes never cross a bucket (the bucket is the hash's top byte). A run's
+    // positions lie anywhere in the input (a soup writes a vertex once per face around it, far
+    // apart): the positions of keys some places ahead that are in runs are fetched ahead, so
+    // their cache misses overlap instead of stalling the loop one run at a time.
     let link_bucket = |bucket: &[u64]| {
+        const AHEAD: usize = 128;
+        let hash = |j: usize| bucket[j] >> 32;
+        let in_run = |j: usize| {
+            (j > 0 && hash(j - 1) == hash(j)) || (j + 1 < bucket.len() && hash(j + 1) == hash(j))
+        };
+        let mut fetched = 0;
         for run in runs(bucket, 32) {
+            while fetched < (run.end + AHEAD).min(bucket.len()) {
+                if in_run(fetched) {
+                    let p = &positions[bucket[fetched] as u32 as usize];
+                    prefetch(&p[0]);
+                    prefetch(&p[2]);
+                }
+                fetched += 1;
+            }
             if run.len() > 1 {
                 link_run(&bucket[run], positions, &link);
             }
@@ -178,6 +198,15 @@ fn link_run(run: &[u64], positions: &[[f64; 3]], link: &[AtomicU32]) {
     const FEW: usize = 16;
     let index = |e: u64| e as u32;
     let key = |e: u64| bits(&positions[index(e) as usize]);
+    // The common case, a run of one position (a soup's vertex), with no table to set up.
+    let first = key(run[0]);
+    let same = run[1..].iter().take_while(|&&e| key(e) == first).count();
+    for &e in &run[1..=same] {
+        link[index(e) as usize].store(index(run[0]), Relaxed);
+    }
+    if same + 1 == run.len() {
+        return;
+    }
     if run.len() <= FEW {
         let mut firsts = [(0u32, [0u64; 3]); FEW];
         let mut count = 0;
@@ -608,6 +637,25 @@ mod tests {
             let link: Vec<u32> = link.into_iter().map(AtomicU32::into_inner).collect();
             let expected: Vec<u32> = (0..n as u32)
                 .map(|i| if i < 3 { FIRST } else { i % 3 })
+                .collect();
+            assert_eq!(link, expected, "{n}");
+        }
+        // A run that starts as one position (the common case, linked without a table) and then
+        // meets a second one, short and long: [a, a, a, b, a, b, ...].
+        for n in [6, 20] {
+            let points: Vec<[f64; 3]> = (0..n)
+                .map(|i| [if i == 3 || i == 5 { 1.0 } else { 0.0 }, 0.0, 0.0])
+                .collect();
+            let run: Vec<u64> = (0..n as u64).map(|i| 7 << 32 | i).collect();
+            let link: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(FIRST)).collect();
+            link_run(&run, &points, &link);
+            let link: Vec<u32> = link.into_iter().map(AtomicU32::into_inner).collect();
+            let expected: Vec<u32> = (0..n as u32)
+                .map(|i| match i {
+                    0 | 3 => FIRST,
+                    5 => 3,
+                    _ => 0,
+                })
                 .collect();
             assert_eq!(link, expected, "{n}");
         }

@@ -41,6 +41,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
 use crate::geometry::morton;
+use crate::pages::prefetch;
 use tree::{Placed, Tree, Visit};
 
 /// What the test reads of a mesh: the welded points, the Corner Table of the faces the analysis
@@ -308,21 +309,6 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         stopped: stop.load(Relaxed),
         involved: involved.into_iter().map(AtomicU64::into_inner).collect(),
     }
-}
-
-/// Asks the processor to bring `x` into its caches; a hint that changes no value (and does
-/// nothing where it is not available).
-#[inline(always)]
-fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE is part of x86-64; a prefetch reads nothing into the program and cannot fault
-    // (here the address is a live reference's besides).
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>((x as *const T).cast());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
 }
 
 /// The Morton grid over the box of the finite `points`, in `f32` (rounded to nearest: the grid

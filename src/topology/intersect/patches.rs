@@ -45,7 +45,7 @@ use std::cmp::Ordering;
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 
 use super::meet::{o2, strictly_opposite, Axes, Point, AXES};
-use super::prefetch;
+use crate::pages::prefetch;
 
 /// Bits of a face's turn: bit `2k`, counter-clockwise when coordinate `k` is dropped; bit
 /// `2k + 1`, clockwise. A set can be a flat patch along `k` only when all its faces share one of
