@@ -129,7 +129,7 @@ fn weld_exact(positions: &[[f64; 3]], parallel: bool) -> Welded {
     // apart): the positions of keys some places ahead that are in runs are fetched ahead, so
     // their cache misses overlap instead of stalling the loop one run at a time.
     let link_bucket = |bucket: &[u64]| {
-        const AHEAD: usize = 128;
+        const AHEAD: usize = 64;
         let hash = |j: usize| bucket[j] >> 32;
         let in_run = |j: usize| {
             (j > 0 && hash(j - 1) == hash(j)) || (j + 1 < bucket.len() && hash(j + 1) == hash(j))
