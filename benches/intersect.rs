@@ -268,14 +268,19 @@ fn corpus_files() {
         if !wanted(file) {
             continue;
         }
-        let path = corpus.join(file);
-        let Some(format) = Format::of_path(&path).filter(|_| path.is_file()) else {
-            println!("{file}: no corpus, skipped");
-            continue;
-        };
-        let mesh = formats::read(&path, format, &cx).expect("a corpus file")[0].clone();
-        bench_test(file, &mesh, 10);
+        bench_file(file, &corpus.join(file), &cx, "no corpus");
     }
+}
+
+/// [`bench_test`] on the first mesh of the file at `path`, or a line saying it was skipped
+/// (`missing`: why, when there is no such mesh file).
+fn bench_file(label: &str, path: &Path, cx: &ReadContext, missing: &str) {
+    let Some(format) = Format::of_path(path).filter(|_| path.is_file()) else {
+        println!("{label}: {missing}, skipped");
+        return;
+    };
+    let mesh = formats::read(path, format, cx).expect("a mesh file")[0].clone();
+    bench_test(label, &mesh, 10);
 }
 
 /// The mesh file named by `MESHVET_BENCH_MESH`, when set: a file not in the corpus, such as the
@@ -285,15 +290,10 @@ fn given_mesh() {
     let Some(path) = std::env::var_os("MESHVET_BENCH_MESH").map(std::path::PathBuf::from) else {
         return;
     };
-    let label = path.display().to_string();
-    let Some(format) = Format::of_path(&path).filter(|_| path.is_file()) else {
-        println!("{label}: not a mesh file meshvet reads, skipped");
-        return;
-    };
     let cx = ReadContext {
         root: path.parent().unwrap_or(Path::new(".")).to_path_buf(),
         limits: Limits::default(),
     };
-    let mesh = formats::read(&path, format, &cx).expect("a mesh file")[0].clone();
-    bench_test(&label, &mesh, 10);
+    let label = path.display().to_string();
+    bench_file(&label, &path, &cx, "not a mesh file meshvet reads");
 }
