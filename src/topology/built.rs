@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 use super::Options;
 use crate::corner_table::{Apexes, CornerTable};
-use crate::geometry::{dist2, morton, norm2, normal};
+use crate::geometry::{curve, dist2, norm2, normal};
 use crate::mesh::Mesh;
 use crate::weld::{weld, weld_parallel, Welded, INVALID};
 
@@ -179,7 +179,7 @@ fn scattered(faces: &[[u32; 3]], welded: &Welded) -> bool {
 /// build without it.
 fn renumber_along_space(welded: &mut Welded) {
     let points = &welded.positions;
-    let order = morton::order(points.len(), |v| points[v].map(|x| x as f32));
+    let order = curve::order(points.len(), |v| points[v].map(|x| x as f32));
     let mut new = vec![0u32; order.len()];
     for (rank, &old) in order.iter().enumerate() {
         new[old as usize] = rank as u32;

@@ -40,7 +40,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
 use super::built::{cross2, zero_area_bound, Built};
 use crate::corner_table::CornerTable;
-use crate::geometry::morton;
+use crate::geometry::curve;
 use crate::pages::prefetch;
 use tree::{Placed, Tree, Visit};
 
@@ -209,7 +209,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     // Pairs within a flat region (faces of one plane that tile it once) are skipped as found.
     let regions = regions::flat_regions(points, surface.table, &stars.turns, &stars.along);
 
-    // The table faces kept, sorted along a Morton curve of their box centres over the points'
+    // The table faces kept, sorted along a Hilbert curve of their box centres over the points'
     // box: keys made in table order (the analysis sorts faces by vertex, so this reads points
     // nearly in order) in one loop on one thread, since runs gathered on every thread and joined
     // were no quicker on two threads (the loop is bound by memory). The boxes are not kept: each
@@ -228,15 +228,16 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
                 let (x, y, z) = (p[0][k], p[1][k], p[2][k]);
                 (0.5 * (x.min(y).min(z) + x.max(y).max(z))) as f32
             });
-            keys.push(grid.key(middle, t));
+            keys.push(grid.cell_key(middle, t));
         }
     }
-    morton::sort_keys(&mut keys);
+    curve::hilbert(&mut keys);
+    curve::sort_keys(&mut keys);
     // The table face at each place of the sorted order.
     let faces: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
     drop(keys);
     // Faces that share a vertex with a flat star meet only there or along an edge they share: the
-    // walk skips those pairs. The faces come in Morton order, their table rows and points
+    // walk skips those pairs. The faces come in the curve's order, their table rows and points
     // scattered in memory: each face fetches ahead the rows of a face two leaves on and the points
     // of the face one leaf on (whose row it fetched a leaf ago), so those loads overlap instead of
     // stalling one by one.
@@ -311,12 +312,12 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     }
 }
 
-/// The Morton grid over the box of the finite `points`, in `f32` (rounded to nearest: the grid
+/// The curve's grid over the box of the finite `points`, in `f32` (rounded to nearest: the grid
 /// counts a point just outside as in the border cell, so rounding only moves a face to a
 /// neighbouring cell).
-fn points_grid(points: &[[f64; 3]]) -> morton::Grid {
+fn points_grid(points: &[[f64; 3]]) -> curve::Grid {
     let finite = points.iter().filter(|p| p.iter().all(|x| x.is_finite()));
-    morton::Grid::around(finite.map(|p| p.map(|x| x as f32)))
+    curve::Grid::around(finite.map(|p| p.map(|x| x as f32)))
 }
 
 /// The points times a power of two that brings the largest coordinate near 1, when it is beyond

@@ -5,7 +5,7 @@
 //! CAD exports and print models are made of plates whose top and bottom are such a plane each,
 //! cut into long thin faces. Their boxes overlap by the hundred thousand, and every such pair is
 //! exactly coplanar, the narrow phase's most expensive case. The tree's flat patches
-//! ([`super::patches`]) do not cover them: a Morton node of a thin plate holds faces of its top,
+//! ([`super::patches`]) do not cover them: a tree node of a thin plate holds faces of its top,
 //! its bottom and its sides, which turn different ways.
 //!
 //! A region is a class of the relation "share a manifold edge that both traverse in opposite

@@ -3,8 +3,8 @@
 //! caller marks as skipped (a vertex with a flat star, [`super::stars`]) are left out where the
 //! leaves are compared, before the narrow phase sees them.
 //!
-//! Faces are sorted along a Morton curve (a 30-bit code of their box centre, radix-sorted), so
-//! faces close in the order are close in space. Runs of [`LEAF`] faces are the leaves; level `k + 1`
+//! Faces come sorted along a Hilbert curve (a 30-bit code of their box centre, radix-sorted,
+//! [`crate::geometry::curve`]), so faces close in the order are close in space. Runs of [`LEAF`] faces are the leaves; level `k + 1`
 //! joins the nodes `2i` and `2i + 1` of level `k`, up to one root. Boxes are `f32`, rounded outward
 //! from the exact `f64` boxes, so two faces whose closed triangles share a point always have
 //! overlapping boxes here too. A leaf keeps its faces' boxes on a grid of its own, 256 lines per axis
@@ -648,7 +648,7 @@ impl Tree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::morton;
+    use crate::geometry::curve;
 
     /// Collects the pairs the walk reports, as (lower, higher) sorted positions.
     struct Pairs(Vec<(u32, u32)>);
@@ -718,7 +718,7 @@ mod tests {
                 }
             })
             .collect();
-        let order = morton::order(boxes.len(), |i| centre(&boxes[i]));
+        let order = curve::order(boxes.len(), |i| centre(&boxes[i]));
         let faces = |p: usize| {
             let v = vertices[order[p] as usize];
             let skipped = (0..3).fold(0, |m, k| m | u8::from(skipped[v[k] as usize]) << k);
@@ -846,7 +846,7 @@ mod tests {
             let [x, y, _] = rim(i);
             box_of(&[[x, y, 0.0], [x, y, 1.0], [x * 1.001, y * 1.001, 0.5]])
         }));
-        let order = morton::order(boxes.len(), |i| centre(&boxes[i]));
+        let order = curve::order(boxes.len(), |i| centre(&boxes[i]));
         let walk = |skipped: u8, region: u32| {
             let tree = Tree::build(boxes.len(), |p| {
                 let i = order[p];
