@@ -4,15 +4,16 @@
 //! leaves are compared, before the narrow phase sees them.
 //!
 //! Faces come sorted along a Hilbert curve (a 30-bit code of their box centre, radix-sorted,
-//! [`crate::geometry::curve`]), so faces close in the order are close in space. Runs of [`LEAF`] faces are the leaves; level `k + 1`
-//! joins the nodes `2i` and `2i + 1` of level `k`, up to one root. Boxes are `f32`, rounded outward
-//! from the exact `f64` boxes, so two faces whose closed triangles share a point always have
-//! overlapping boxes here too. A leaf keeps its faces' boxes on a grid of its own, 256 lines per axis
-//! across the leaf's box, a byte a coordinate, rounded outward again (lowest corners down to a line,
-//! highest up): the leaves are most of the search's memory, and this makes them 22.5 bytes a face
-//! instead of 37. The walk reads the lines back exactly as they were placed (one `f32` multiply and
-//! add, [`grid_line`]), so overlapping boxes still overlap; it may also pair faces whose boxes only
-//! come within a line of each other, which the narrow phase then finds apart.
+//! [`crate::geometry::curve`]), so faces close in the order are close in space. Runs of [`LEAF`]
+//! faces are the leaves; level `k + 1` joins the nodes `2i` and `2i + 1` of level `k`, up to one
+//! root. Boxes are `f32`, rounded outward from the exact `f64` boxes, so two faces whose closed
+//! triangles share a point always have overlapping boxes here too. A leaf keeps its faces' boxes on
+//! a grid of its own, 256 lines per axis across the leaf's box, a byte a coordinate, rounded
+//! outward again (lowest corners down to a line, highest up): the leaves are most of the search's
+//! memory, and this makes them 22.5 bytes a face instead of 37. The walk reads the lines back
+//! exactly as they were placed (one `f32` multiply and add, [`grid_line`]), so overlapping boxes
+//! still overlap; it may also pair faces whose boxes only come within a line of each other, which
+//! the narrow phase then finds apart.
 //!
 //! The walk: within a node, the pairs within each child and the pairs between the two children;
 //! between two nodes whose boxes overlap, the pairs between their children. Every unordered pair of
