@@ -92,10 +92,6 @@ impl Grid {
 /// One key's transform is a long chain of dependent steps; on x86-64 eight keys go side by side
 /// in the vector unit's lanes (871k keys: 6.4 ms, against 24 ms one by one).
 pub(crate) fn hilbert(keys: &mut [u64]) {
-    let cells = |k: u64| {
-        let c = (k >> 32) as u32;
-        [c & 0x3ff, c >> 10 & 0x3ff, c >> 20 & 0x3ff]
-    };
     // Eight at a time in vector lanes on x86-64, the rest (all of them elsewhere) one by one.
     #[cfg(target_arch = "x86_64")]
     let keys = {
@@ -107,15 +103,26 @@ pub(crate) fn hilbert(keys: &mut [u64]) {
             });
             // SAFETY: SSE2 is part of x86-64 itself: every x86-64 processor has it.
             let places = unsafe { lanes::places(x) };
-            for (k, place) in chunk.iter_mut().zip(places.as_flattened()) {
-                *k = u64::from(*place) << 32 | (*k & 0xffff_ffff);
+            for (k, &place) in chunk.iter_mut().zip(places.as_flattened()) {
+                *k = with_code(*k, place);
             }
         }
         chunks.into_remainder()
     };
     for k in keys {
-        *k = u64::from(place(transform(cells(*k)))) << 32 | (*k & 0xffff_ffff);
+        *k = with_code(*k, place(transform(cells(*k))));
     }
+}
+
+/// The three cell coordinates a key of [`Grid::cell_key`] packs in its high 32 bits.
+fn cells(key: u64) -> [u32; 3] {
+    let c = (key >> 32) as u32;
+    [c & 0x3ff, c >> 10 & 0x3ff, c >> 20 & 0x3ff]
+}
+
+/// `key` with `code` in its high 32 bits, its id kept.
+fn with_code(key: u64, code: u32) -> u64 {
+    u64::from(code) << 32 | (key & 0xffff_ffff)
 }
 
 /// The transformed coordinates of a cell ([`hilbert`]), one by one.
@@ -288,10 +295,8 @@ mod tests {
             .collect();
         let mut in_lanes = keys.clone();
         hilbert(&mut in_lanes);
-        for (k, h) in keys.iter().zip(&in_lanes) {
-            let c = (k >> 32) as u32;
-            let one = place(transform([c & 0x3ff, c >> 10 & 0x3ff, c >> 20 & 0x3ff]));
-            assert_eq!(*h, u64::from(one) << 32 | (k & 0xffff_ffff), "{k:#x}");
+        for (&k, &h) in keys.iter().zip(&in_lanes) {
+            assert_eq!(h, with_code(k, place(transform(cells(k)))), "{k:#x}");
         }
     }
 
