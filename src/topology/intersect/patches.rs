@@ -51,14 +51,9 @@ use crate::pages::prefetch;
 /// `2k + 1`, clockwise. A set can be a flat patch along `k` only when all its faces share one of
 /// those bits.
 pub(super) fn turn_bits(turn: [f64; 3]) -> u8 {
+    // Without branches (as `stars::corner_parts`).
     (0..3).fold(0, |m, k| {
-        m | if turn[k] > 0.0 {
-            1 << (2 * k)
-        } else if turn[k] < 0.0 {
-            2 << (2 * k)
-        } else {
-            0
-        }
+        m | (u8::from(turn[k] > 0.0) | u8::from(turn[k] < 0.0) << 1) << (2 * k)
     })
 }
 

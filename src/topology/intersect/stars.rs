@@ -236,15 +236,17 @@ fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], [
     for (j, part) in parts.iter_mut().enumerate() {
         let (v, a, b) = (p[j], p[(j + 1) % 3], p[(j + 2) % 3]);
         for (k, axes) in AXES.iter().enumerate() {
+            // Without branches: a face's turn along an axis near its plane is a coin toss the
+            // processor would mispredict.
             let y = axes.1;
-            let (bits, crosses) = if turn[k] > 0.0 {
-                (COUNTER, a[y] <= v[y] && v[y] < b[y])
-            } else if turn[k] < 0.0 {
-                (CLOCKWISE, b[y] <= v[y] && v[y] < a[y])
-            } else {
-                (ZERO, false)
-            };
-            *part |= (bits | if crosses { ONE } else { 0 }) << (5 * k);
+            let (counter, clockwise) = (turn[k] > 0.0, turn[k] < 0.0);
+            let crosses = (counter & (a[y] <= v[y]) & (v[y] < b[y]))
+                | (clockwise & (b[y] <= v[y]) & (v[y] < a[y]));
+            let bits = u16::from(counter) * COUNTER
+                | u16::from(clockwise) * CLOCKWISE
+                | u16::from(!counter & !clockwise) * ZERO
+                | u16::from(crosses) * ONE;
+            *part |= bits << (5 * k);
         }
     }
     // Collinear: no projection has area (as `meet::collinear` says).
