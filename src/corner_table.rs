@@ -470,6 +470,18 @@ fn sort_small(bucket: &mut [u64]) {
         bucket.sort_unstable();
         return;
     }
+    if bucket.len() <= 8 {
+        // Compare-exchanges without branches: how far an insertion moves a key is a coin toss the
+        // processor mispredicts once a key.
+        for i in 1..bucket.len() {
+            for j in (0..i).rev() {
+                let (a, b) = (bucket[j], bucket[j + 1]);
+                bucket[j] = a.min(b);
+                bucket[j + 1] = a.max(b);
+            }
+        }
+        return;
+    }
     for i in 1..bucket.len() {
         let key = bucket[i];
         let mut j = i;
