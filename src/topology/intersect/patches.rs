@@ -242,6 +242,9 @@ impl<'a> Patches<'a> {
                     self.pinch_at[p] = self.path.len() as u32;
                 }
                 self.path.push(from);
+                // Its point is read when the loop closes: fetched now, the load has the rest
+                // of the loop's walk to land (it missed the cache on nearly every point).
+                prefetch(&self.points[from as usize]);
                 if to == start {
                     break;
                 }
