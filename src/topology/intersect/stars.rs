@@ -240,8 +240,8 @@ fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], [
             // processor would mispredict.
             let y = axes.1;
             let (counter, clockwise) = (turn[k] > 0.0, turn[k] < 0.0);
-            let crosses = (counter & (a[y] <= v[y]) & (v[y] < b[y]))
-                | (clockwise & (b[y] <= v[y]) & (v[y] < a[y]));
+            let (from, to) = if counter { (a[y], b[y]) } else { (b[y], a[y]) };
+            let crosses = (counter | clockwise) & (from <= v[y]) & (v[y] < to);
             let bits = u16::from(counter) * COUNTER
                 | u16::from(clockwise) * CLOCKWISE
                 | u16::from(!counter & !clockwise) * ZERO
