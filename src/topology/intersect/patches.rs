@@ -68,6 +68,9 @@ pub(super) struct Patches<'a> {
     pub(super) along: &'a [u8],
     /// Border edges `(from, to)`.
     edges: Vec<(u32, u32)>,
+    /// The edges that start at each vertex ([`slot_of`]): the vertex, its first edge and its
+    /// second ([`EMPTY`] for none; a second one makes the vertex a pinch).
+    starts: Vec<[u32; 3]>,
     /// The vertices that start two border edges, ascending, and where each is on `path`
     /// (`u32::MAX`: not on it).
     pinches: Vec<u32>,
@@ -111,6 +114,7 @@ impl<'a> Patches<'a> {
             place,
             along,
             edges: Vec::new(),
+            starts: Vec::new(),
             pinches: Vec::new(),
             pinch_at: Vec::new(),
             path: Vec::new(),
@@ -189,23 +193,28 @@ impl<'a> Patches<'a> {
                 self.edges.push((tri[(j + 1) % 3], tri[(j + 2) % 3]));
             }
         }
-        self.edges.sort_unstable();
         if self.edges.len() < 3 {
             return false;
         }
-        // Pinches: a vertex may start two border edges (two fans of the patch meet there) when its
-        // whole star is flat along this axis, so that the fans' shadows are wedges apart; never
-        // three.
+        // The edges by their first vertex, in a table open-addressed by it. Pinches: a vertex may
+        // start two border edges (two fans of the patch meet there) when its whole star is flat
+        // along this axis, so that the fans' shadows are wedges apart; never three.
+        let size = (2 * self.edges.len()).next_power_of_two();
+        self.starts.clear();
+        self.starts.resize(size, [EMPTY; 3]);
         self.pinches.clear();
-        for w in self.edges.windows(2) {
-            if w[0].0 == w[1].0 {
-                let v = w[0].0;
-                if self.pinches.last() == Some(&v) || self.along[v as usize] & (1 << k) == 0 {
-                    return false;
-                }
+        for (i, &(v, _)) in self.edges.iter().enumerate() {
+            let slot = slot_of(&mut self.starts, v);
+            if slot[0] == EMPTY {
+                *slot = [v, i as u32, EMPTY];
+            } else if slot[2] == EMPTY && self.along[v as usize] & (1 << k) != 0 {
+                slot[2] = i as u32;
                 self.pinches.push(v);
+            } else {
+                return false;
             }
         }
+        self.pinches.sort_unstable();
         self.follow_loops(AXES[k]) && self.simple() && self.wound_once(bits & (1 << (2 * k)) != 0)
     }
 
@@ -248,12 +257,12 @@ impl<'a> Patches<'a> {
                 if to == start {
                     break;
                 }
-                let out = self.edges.partition_point(|e| e.0 < to);
-                match (out..self.edges.len())
-                    .take_while(|&i| self.edges[i].0 == to)
-                    .find(|&i| !self.used[i])
+                let [_, a, b] = *slot_of(&mut self.starts, to);
+                match [a, b]
+                    .into_iter()
+                    .find(|&i| i != EMPTY && !self.used[i as usize])
                 {
-                    Some(i) => at = i,
+                    Some(i) => at = i as usize,
                     None => return false,
                 }
             }
@@ -396,6 +405,21 @@ impl<'a> Patches<'a> {
             own + way * others == 1
         })
     }
+}
+
+/// A free place in [`Patches::starts`].
+const EMPTY: u32 = u32::MAX;
+
+/// The slot of vertex `v` in `starts` (a power of two long, less than half full): its own, or the
+/// free one it would take. Probing from a multiplicative hash instead of a sort and binary searches
+/// over the edges (a patch of a few hundred faces has about sixty).
+fn slot_of(starts: &mut [[u32; 3]], v: u32) -> &mut [u32; 3] {
+    let mask = starts.len() - 1;
+    let mut i = (v.wrapping_mul(0x9e37_79b9) >> 7) as usize & mask;
+    while starts[i][0] != EMPTY && starts[i][0] != v {
+        i = (i + 1) & mask;
+    }
+    &mut starts[i]
 }
 
 /// The most loops a flat patch may have (in the walk's tree nodes, whose tries mostly fail).
