@@ -720,6 +720,22 @@ mod tests {
         assert_eq!(part_flat(&points, &triangles, &corners), (false, true));
     }
 
+    /// Three faces around one vertex with a face between each two: three fans meet there, so the
+    /// vertex starts three border edges, which no flat patch has (even on a flat star).
+    #[test]
+    fn three_fans_at_a_vertex_are_not_a_flat_patch() {
+        let (points, triangles) = grid(6, |_, _| 0.0, |_, _| false);
+        // Around vertex (3, 3), in turn: 28, 31, 42, 43, 40, 29; every other one of them.
+        let vertex = 3 * 7 + 3;
+        let part = [28, 42, 40];
+        assert!(part
+            .iter()
+            .all(|&t| triangles[t as usize].contains(&vertex)));
+        assert_eq!(part_flat(&points, &triangles, &part), (false, true));
+        // Two of them are a pinch on a flat star: flat.
+        assert_eq!(part_flat(&points, &triangles, &part[..2]), (true, true));
+    }
+
     /// Random bumpy grids with their points pushed sideways, and random sets of their faces (so
     /// that many of them are pinched): no set called flat has two faces that meet.
     #[test]
