@@ -242,10 +242,10 @@ fn corner_parts(points: &[Point], table: &CornerTable, t: usize) -> ([u16; 3], [
             let (counter, clockwise) = (turn[k] > 0.0, turn[k] < 0.0);
             let (from, to) = if counter { (a[y], b[y]) } else { (b[y], a[y]) };
             let crosses = (counter | clockwise) & (from <= v[y]) & (v[y] < to);
-            let bits = u16::from(counter) * COUNTER
-                | u16::from(clockwise) * CLOCKWISE
-                | u16::from(!counter & !clockwise) * ZERO
-                | u16::from(crosses) * ONE;
+            let bits = (u16::from(counter) * COUNTER)
+                | (u16::from(clockwise) * CLOCKWISE)
+                | (u16::from(!counter & !clockwise) * ZERO)
+                | (u16::from(crosses) * ONE);
             *part |= bits << (5 * k);
         }
     }
