@@ -792,6 +792,14 @@ impl QuickAscii {
     }
 }
 
+/// A face line's number as [`text::plain_line`] reads it: ASCII digits up to `i64::MAX` (other
+/// tokens are the quick reader's, which says the same of them as [`text::leading_i64`]).
+#[inline(always)]
+fn plain_index(bytes: &[u8]) -> Option<(i64, usize)> {
+    let (k, n) = text::leading_index(bytes)?;
+    Some((i64::try_from(k).ok()?, n))
+}
+
 fn cut(token: &[u8]) -> String {
     String::from_utf8_lossy(token).chars().take(40).collect()
 }
@@ -919,9 +927,15 @@ impl<'a> Body<'a> {
             let axes = [Role::Axis(0), Role::Axis(1), Role::Axis(2)];
             let quick = QuickAscii::of(def, &roles, &axes);
             let mut indices = Vec::new();
+            let plain = quick.is_some_and(|q| q.more == 0);
             for i in 0..def.count {
-                if let Some((xyz, n)) = quick.and_then(|q| q.numbers(self.rest, text::leading_f64))
-                {
+                // The plainest lines first (`x y z` and a line feed, single spaces), then the
+                // other lines the quick reader takes, then the general reader.
+                let line = match plain.then(|| text::plain_line(self.rest, text::leading_decimal)) {
+                    Some(Some(line)) => Some(line),
+                    _ => quick.and_then(|q| q.numbers(self.rest, text::leading_f64)),
+                };
+                if let Some((xyz, n)) = line {
                     self.rest = &self.rest[n..];
                     self.line += 1;
                     out.push(xyz);
@@ -1008,8 +1022,15 @@ impl<'a> Body<'a> {
         out: &mut Vec<[u32; 3]>,
     ) -> usize {
         let mut read = 0;
+        let plain = quick.more == 0;
         while read < count && out.len() as u64 <= limit {
-            let Some(([n, a, b, c], len)) = quick.numbers(self.rest, text::leading_i64) else {
+            // `3 a b c` and a line feed, single spaces (most lines), read without the quick
+            // reader's scans; other lines by the quick reader.
+            let line = match plain.then(|| text::plain_line(self.rest, plain_index)) {
+                Some(Some(line)) => Some(line),
+                _ => quick.numbers(self.rest, text::leading_i64),
+            };
+            let Some(([n, a, b, c], len)) = line else {
                 break;
             };
             let t = [a, b, c];
@@ -1219,6 +1240,96 @@ mod tests {
                     };
                     assert_eq!(numbers, expected, "`{line}`");
                 }
+            }
+        }
+        assert!(taken.iter().all(|&n| n > 3_000), "lines taken: {taken:?}");
+    }
+
+    /// The plainest lines' reader ([`text::plain_line`]) reads what the line-by-line reader
+    /// reads, wherever it takes a line, and takes the plain lines of a real file's body. Random
+    /// lines, mostly single spaces and line feeds, with odd tokens, blanks and line ends mixed in.
+    #[test]
+    fn plain_lines_read_as_the_line_reader() {
+        const TOKENS: [&str; 14] = [
+            "-2.5",
+            "+4",
+            "nan",
+            "1e5",
+            "1.",
+            ".5",
+            "-0",
+            "1.0e",
+            "1E-3",
+            "2,5",
+            "-",
+            "inf",
+            "99999999999999999999",
+            "0.1234567890123456789",
+        ];
+        const GAPS: [&str; 3] = ["\t", "  ", " \x0c"];
+        const ENDS: [&str; 4] = ["\r\n", " \n", "\r", "\t\n"];
+        let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+            property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+        let (_, header, _) = header(text.as_bytes()).unwrap();
+        let mut random = crate::geometry::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut pick = |n: usize| (random() % n as u64) as usize;
+        let mut taken = [0; 2];
+        for (e, def) in header.elements.values().enumerate() {
+            let roles = roles(def);
+            for _ in 0..20_000 {
+                let mut line = String::new();
+                // Mostly the numbers read (3 of a vertex, 4 of a face), single spaces and `\n`.
+                let count = if pick(5) == 0 { 2 + pick(4) } else { 3 + e };
+                for k in 0..count {
+                    match pick(10) {
+                        0 => line.push_str(GAPS[pick(GAPS.len())]),
+                        _ if k > 0 => line.push(' '),
+                        _ => {}
+                    }
+                    match pick(6) {
+                        _ if k == 0 && e == 1 => line.push_str(["3", "3", "3", "4"][pick(4)]),
+                        0 => line.push_str(TOKENS[pick(TOKENS.len())]),
+                        1 if e == 0 => line.push_str(&format!("{:e}", pick(1 << 40) as f64 / 7e3)),
+                        2 if e == 0 => line.push_str(&format!("-{}.{:03}", pick(1000), pick(1000))),
+                        _ => line.push_str(&pick(100_000).to_string()),
+                    }
+                }
+                line.push_str(if pick(8) == 0 {
+                    ENDS[pick(ENDS.len())]
+                } else {
+                    "\n"
+                });
+                line.push_str("8 9 1\n");
+                let bytes = line.as_bytes();
+                let (mut xyz, mut indices) = ([0.0; 3], Vec::new());
+                let (mut rest, mut line_no) = (bytes, 0);
+                let by_line = next_line(&mut rest, &mut line_no)
+                    .and_then(|l| ascii_record(l, def, &roles, &mut xyz, &mut indices).ok())
+                    .map(|()| bytes.len() - rest.len());
+                let (len, numbers, expected) = if e == 0 {
+                    let Some((q, len)) = text::plain_line::<f64, 3>(bytes, text::leading_decimal)
+                    else {
+                        continue;
+                    };
+                    (
+                        len,
+                        q.map(f64::to_bits).to_vec(),
+                        xyz.map(f64::to_bits).to_vec(),
+                    )
+                } else {
+                    let Some((q, len)) = text::plain_line::<i64, 4>(bytes, plain_index) else {
+                        continue;
+                    };
+                    if q[0] != 3 {
+                        continue;
+                    }
+                    let expected = indices.iter().map(|&i| i as u64).collect();
+                    (len, q[1..].iter().map(|&i| i as u64).collect(), expected)
+                };
+                taken[e] += 1;
+                let line = line.escape_debug();
+                assert_eq!(by_line, Some(len), "`{line}`");
+                assert_eq!(numbers, expected, "`{line}`");
             }
         }
         assert!(taken.iter().all(|&n| n > 3_000), "lines taken: {taken:?}");

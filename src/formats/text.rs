@@ -333,6 +333,41 @@ impl<'a, const COMMENTS: bool> Tokens<'a, COMMENTS> {
     }
 }
 
+/// The `N` numbers of a line laid out the plainest way, each read by `leading` (the number at
+/// the start of some bytes and its length): a number at the line's first byte, one space after
+/// each number, or a line feed straight after the last; and the line's length with that line
+/// feed. `None` for any other line, which the caller's general reader then takes. Big files'
+/// exporters write nearly every line so, and such a line is read here without a scan for blanks
+/// or for tokens after the numbers. Where it reads a line, the general quick readers read the
+/// same numbers from it and end it at the same place (they allow any blanks around the numbers
+/// and check what follows them; the tests hold both to that).
+#[inline(always)]
+pub(crate) fn plain_line<T: Copy + Default, const N: usize>(
+    rest: &[u8],
+    leading: impl Fn(&[u8]) -> Option<(T, usize)>,
+) -> Option<([T; N], usize)> {
+    let mut out = [T::default(); N];
+    let mut at = 0;
+    for (k, x) in out.iter_mut().enumerate() {
+        let (value, n) = leading(rest.get(at..)?)?;
+        *x = value;
+        at += n;
+        match rest.get(at) {
+            Some(b' ') => at += 1,
+            Some(b'\n') if k + 1 == N => return Some((out, at + 1)),
+            _ => return None,
+        }
+    }
+    (rest.get(at) == Some(&b'\n')).then_some((out, at + 1))
+}
+
+/// A vertex index as [`plain_line`] reads it: ASCII digits only, from the first byte (a sign, or
+/// a number above `u64::MAX`, is `None`: the general reader takes such a line).
+#[inline(always)]
+pub(crate) fn leading_index(bytes: &[u8]) -> Option<(u64, usize)> {
+    leading_digits(bytes, 0)
+}
+
 /// ASCII whitespace other than a line feed: what separates the words of a line (of OBJ and OFF;
 /// in PLY a `\r` ends the line).
 #[inline(always)]
@@ -500,7 +535,7 @@ pub(crate) fn leading_f64(bytes: &[u8]) -> Option<(f64, usize)> {
 /// division is correctly rounded: the value is the correctly rounded one every exact parser
 /// gives (Clinger's fast path, which `fast-float2` takes too, after more general work).
 #[inline(always)]
-fn leading_decimal(bytes: &[u8]) -> Option<(f64, usize)> {
+pub(crate) fn leading_decimal(bytes: &[u8]) -> Option<(f64, usize)> {
     /// The powers of ten an `f64` holds exactly.
     const POWERS: [f64; 23] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
