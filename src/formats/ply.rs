@@ -792,14 +792,6 @@ impl QuickAscii {
     }
 }
 
-/// A face line's number as [`text::plain_line`] reads it: ASCII digits up to `i64::MAX` (other
-/// tokens are the quick reader's, which says the same of them as [`text::leading_i64`]).
-#[inline(always)]
-fn plain_index(bytes: &[u8]) -> Option<(i64, usize)> {
-    let (k, n) = text::leading_index(bytes)?;
-    Some((i64::try_from(k).ok()?, n))
-}
-
 fn cut(token: &[u8]) -> String {
     String::from_utf8_lossy(token).chars().take(40).collect()
 }
@@ -931,10 +923,9 @@ impl<'a> Body<'a> {
             for i in 0..def.count {
                 // The plainest lines first (`x y z` and a line feed, single spaces), then the
                 // other lines the quick reader takes, then the general reader.
-                let line = match plain.then(|| text::plain_line(self.rest, text::leading_decimal)) {
-                    Some(Some(line)) => Some(line),
-                    _ => quick.and_then(|q| q.numbers(self.rest, text::leading_f64)),
-                };
+                let line = (plain.then(|| text::plain_line(self.rest, text::leading_decimal)))
+                    .flatten()
+                    .or_else(|| quick.and_then(|q| q.numbers(self.rest, text::leading_f64)));
                 if let Some((xyz, n)) = line {
                     self.rest = &self.rest[n..];
                     self.line += 1;
@@ -1026,10 +1017,9 @@ impl<'a> Body<'a> {
         while read < count && out.len() as u64 <= limit {
             // `3 a b c` and a line feed, single spaces (most lines), read without the quick
             // reader's scans; other lines by the quick reader.
-            let line = match plain.then(|| text::plain_line(self.rest, plain_index)) {
-                Some(Some(line)) => Some(line),
-                _ => quick.numbers(self.rest, text::leading_i64),
-            };
+            let line = (plain.then(|| text::plain_line(self.rest, text::leading_i64)))
+                .flatten()
+                .or_else(|| quick.numbers(self.rest, text::leading_i64));
             let Some(([n, a, b, c], len)) = line else {
                 break;
             };
@@ -1317,7 +1307,8 @@ mod tests {
                         xyz.map(f64::to_bits).to_vec(),
                     )
                 } else {
-                    let Some((q, len)) = text::plain_line::<i64, 4>(bytes, plain_index) else {
+                    let Some((q, len)) = text::plain_line::<i64, 4>(bytes, text::leading_i64)
+                    else {
                         continue;
                     };
                     if q[0] != 3 {

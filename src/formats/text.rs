@@ -361,13 +361,6 @@ pub(crate) fn plain_line<T: Copy + Default, const N: usize>(
     (rest.get(at) == Some(&b'\n')).then_some((out, at + 1))
 }
 
-/// A vertex index as [`plain_line`] reads it: ASCII digits only, from the first byte (a sign, or
-/// a number above `u64::MAX`, is `None`: the general reader takes such a line).
-#[inline(always)]
-pub(crate) fn leading_index(bytes: &[u8]) -> Option<(u64, usize)> {
-    leading_digits(bytes, 0)
-}
-
 /// ASCII whitespace other than a line feed: what separates the words of a line (of OBJ and OFF;
 /// in PLY a `\r` ends the line).
 #[inline(always)]
