@@ -22,7 +22,10 @@ def read_ascii_ply(path):
             sys.exit(f"{path}: not a PLY")
         counts = {}
         while True:
-            words = f.readline().split()
+            line = f.readline()
+            if not line:
+                sys.exit(f"{path}: no end_header")
+            words = line.split()
             if not words:
                 continue
             if words[0] == "format" and words[1] != "ascii":
