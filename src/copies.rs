@@ -81,43 +81,25 @@ pub fn repair_file(
     let options = settings.repair_options();
     let mut repaired = vec![Repaired::default(); meshes.len()];
     let mut plans: Vec<Option<Plan>> = Vec::with_capacity(meshes.len());
-    let meets = |f: &Finding| {
-        matches!(
-            f.rule,
-            Rule::SelfIntersection | Rule::IntersectingComponents
-        )
-    };
-    // Which sources have faces that meet (a copy's new ones are said below).
-    let met_before: Vec<bool> = judged
+    // Per mesh whose repair was planned: what the plan could not repair, and the faces that meet
+    // in the source. Faces that meet are reported, never moved (a repair cannot know which way is
+    // meant), but a repair can still remove some (a dropped duplicate face overlapped its
+    // original): the note says those the copy still has, once it is checked.
+    let mut left: Vec<Option<(Vec<String>, Vec<String>)>> = vec![None; meshes.len()];
+    for (((mesh, judged), done), left) in meshes
         .iter()
-        .map(|j| j.findings.iter().any(meets))
-        .collect();
-    for ((mesh, judged), done) in meshes.iter().zip(judged).zip(repaired.iter_mut()) {
+        .zip(judged)
+        .zip(repaired.iter_mut())
+        .zip(left.iter_mut())
+    {
         if judged.findings.is_empty() || mesh.triangles.is_empty() {
             plans.push(None);
             continue;
         }
         let built = judged.built.take();
-        // Faces that meet are reported, never moved: a repair cannot know which way is meant.
-        let meeting: Vec<String> = judged
-            .findings
-            .iter()
-            .filter(|f| meets(f))
-            .map(|f| f.rule.describe(f.count))
-            .collect();
         match caught(|| planner(mesh, &options, built)) {
             Ok(plan) => {
-                let mut left = plan.not_repairable.clone();
-                if !meeting.is_empty() {
-                    left.push(format!(
-                        "{} (faces that meet are not repaired)",
-                        meeting.join(" and ")
-                    ));
-                }
-                if !left.is_empty() {
-                    done.notes
-                        .push(format!("not repairable: {}", left.join(", ")));
-                }
+                *left = Some((plan.not_repairable.clone(), meeting(&judged.findings)));
                 // Only plans that change something are written; a mesh that needs nothing stays
                 // as it is.
                 plans.push(Some(plan).filter(Plan::changes));
@@ -135,6 +117,7 @@ pub fn repair_file(
     // A mesh without a verdict is left alone.
     plans.resize_with(meshes.len(), || None);
     if plans.iter().all(Option::is_none) {
+        say_not_repairable(&mut repaired, left, &[]);
         return repaired;
     }
     let out = copy_path(dir, display);
@@ -145,6 +128,7 @@ pub fn repair_file(
             }
         }
     };
+    let mut after_copy = vec![None; meshes.len()];
     match caught(|| {
         stage_and_check(
             &out, dir, source, format, context, meshes, retained, &plans, settings,
@@ -152,28 +136,16 @@ pub fn repair_file(
     }) {
         Ok(Ok(checked)) => {
             let path = out.to_string_lossy().replace('\\', "/");
-            for (i, ((plan, done), after)) in plans
+            for (((plan, done), after), met) in plans
                 .iter()
                 .zip(repaired.iter_mut())
                 .zip(checked.after)
-                .enumerate()
+                .zip(after_copy.iter_mut())
             {
                 let (Some(plan), Some((status, findings))) = (plan, after) else {
                     continue;
                 };
-                // A split moves each fan's copy of a vertex a hair into its fan; where fans meet
-                // at a sharp angle the parts can be left touching or crossing by that hair.
-                let new: Vec<String> = findings
-                    .iter()
-                    .filter(|f| meets(f) && !met_before.get(i).copied().unwrap_or(true))
-                    .map(|f| f.rule.describe(f.count))
-                    .collect();
-                if !new.is_empty() {
-                    done.notes.push(format!(
-                        "not repairable: the split left {} (faces that meet are not repaired)",
-                        new.join(" and ")
-                    ));
-                }
+                *met = Some(meeting(&findings));
                 done.copy = Some(Copy {
                     path: path.clone(),
                     repairs: plan.summary(),
@@ -192,7 +164,57 @@ pub fn repair_file(
         Ok(Err(why)) => failed(&mut repaired, &why),
         Err(panic) => failed(&mut repaired, &format!("internal error ({panic})")),
     }
+    say_not_repairable(&mut repaired, left, &after_copy);
     repaired
+}
+
+/// The descriptions of the findings of faces that meet among `findings`.
+fn meeting(findings: &[Finding]) -> Vec<String> {
+    findings
+        .iter()
+        .filter(|f| {
+            matches!(
+                f.rule,
+                Rule::SelfIntersection | Rule::IntersectingComponents
+            )
+        })
+        .map(|f| f.rule.describe(f.count))
+        .collect()
+}
+
+/// Puts each planned mesh's `not repairable: ...` note first among its notes: what its plan could
+/// not repair (`left`: that, and the faces that meet in the source), and the faces that meet in
+/// its checked copy where there is one (`after`), else in the source. A copy's faces that meet
+/// that the source did not have were left by a split, which moves each fan's copy of a vertex a
+/// hair into its fan: where fans meet at a sharp angle the parts can be left touching or crossing
+/// by that hair.
+fn say_not_repairable(
+    repaired: &mut [Repaired],
+    left: Vec<Option<(Vec<String>, Vec<String>)>>,
+    after: &[Option<Vec<String>>],
+) {
+    for (i, (done, left)) in repaired.iter_mut().zip(left).enumerate() {
+        let Some((mut parts, before)) = left else {
+            continue;
+        };
+        let copy = after.get(i).cloned().flatten();
+        let meeting = copy.as_ref().unwrap_or(&before);
+        if !meeting.is_empty() {
+            let split = if before.is_empty() {
+                "the split left "
+            } else {
+                ""
+            };
+            parts.push(format!(
+                "{split}{} (faces that meet are not repaired)",
+                meeting.join(" and ")
+            ));
+        }
+        if !parts.is_empty() {
+            done.notes
+                .insert(0, format!("not repairable: {}", parts.join(", ")));
+        }
+    }
 }
 
 /// The end of every `repair failed` note.

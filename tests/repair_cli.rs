@@ -180,6 +180,18 @@ fn check_rescan(repaired: &[&Row], again: &BTreeMap<(String, String), Row>) {
                     r["message"]
                 );
             }
+            // And the converse: what the message says is left, the copy has (a dropped
+            // duplicate face takes with it the pair it made with its original).
+            if !said.is_empty() && not_repairable.contains(said) {
+                assert!(
+                    left.contains(said)
+                        || REPAIRABLE
+                            .iter()
+                            .any(|(other, s)| *s == said && left.contains(*other)),
+                    "{key:?}: the message says `{said}` is left, the copy has {left:?}: `{}`",
+                    r["message"]
+                );
+            }
         }
         for part in r["repairs"].split(';') {
             let kind = part.split(':').next().unwrap();
