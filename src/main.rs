@@ -271,6 +271,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         }
     }
     let mut sources = walk::walk_within(&args.paths, &filter, args.root.as_deref());
+    outputs::refuse_reports_over_sources(args, &sources)?;
     if let Some(dir) = &args.repair_dir {
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create the repair folder {}: {e}", dir.display()))?;

@@ -12,6 +12,7 @@ use meshvet::report::{CsvReport, Target};
 use meshvet::rules::{Severity, Status};
 
 use crate::cli::{self, Scan};
+use meshvet::walk::Source;
 
 /// The report files a scan writes.
 pub struct Reports {
@@ -103,6 +104,58 @@ impl Reports {
         }
         Ok(())
     }
+}
+
+/// Refuses, before anything is written, a report that would be put in place of a file the scan
+/// reads (`--csv models/part.obj` would replace the mesh with the CSV: sources are never
+/// written) or in place of another report. Each report is compared by its real path with the
+/// sources of the same file name, so a scan of a million files costs nothing more.
+pub fn refuse_reports_over_sources(args: &Scan, sources: &[Source]) -> Result<(), String> {
+    let flags = [
+        ("--csv", &args.csv),
+        ("--json", &args.json),
+        ("--junit", &args.junit),
+        ("--html", &args.html),
+    ];
+    let mut seen: Vec<(&str, std::path::PathBuf)> = Vec::new();
+    for (flag, path) in flags {
+        let Some(path) = path.as_deref().filter(|p| cli::target(p) != Target::Stdout) else {
+            continue;
+        };
+        let Some(real) = real_path(path) else {
+            continue;
+        };
+        if let Some((other, _)) = seen.iter().find(|(_, p)| *p == real) {
+            return Err(format!(
+                "{other} and {flag} name the same file {}: give each report its own file",
+                path.display()
+            ));
+        }
+        let name = real.file_name();
+        if let Some(source) = sources
+            .iter()
+            .find(|s| s.path.file_name() == name && s.path.canonicalize().is_ok_and(|p| p == real))
+        {
+            return Err(format!(
+                "{flag} {} is a file this scan reads ({}): the report would replace it - \
+                 write the report outside the scanned files or under another name",
+                path.display(),
+                source.display
+            ));
+        }
+        seen.push((flag, real));
+    }
+    Ok(())
+}
+
+/// The real path of `path`, or of its folder joined with its name when it does not exist yet;
+/// `None` when neither can be told (the report's own error then comes when it is opened).
+fn real_path(path: &std::path::Path) -> Option<std::path::PathBuf> {
+    path.canonicalize().ok().or_else(|| {
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        let folder = folder.unwrap_or(std::path::Path::new("."));
+        Some(folder.canonicalize().ok()?.join(path.file_name()?))
+    })
 }
 
 pub fn cannot_write(target: &Target, e: &io::Error) -> String {

@@ -418,6 +418,41 @@ fn csv_file_is_written_whole_and_the_summary_still_printed() {
     assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
 }
 
+/// A report named like a scanned file (by another path to it, too) would replace the source:
+/// refused with exit 2 before anything is written, the source byte for byte as it was. Two
+/// reports naming one file are refused too; a report over last run's report is not.
+#[test]
+fn a_report_never_replaces_a_scanned_file() {
+    let tree = Tree::new(&[("m/a.obj", TETRA), ("m/b.obj", TRIANGLE)]);
+    for (flag, path) in [
+        ("--csv", "m/a.obj"),
+        ("--json", "m/../m/b.obj"),
+        ("--junit", "m/a.obj"),
+        ("--html", "m/b.obj"),
+    ] {
+        let run = meshvet(tree.path(), &["scan", "m", flag, path, "-q"]);
+        assert_eq!(run.code, 2, "{flag} {path}: {}", run.stderr);
+        assert!(
+            run.stderr.contains(flag) && run.stderr.contains("reads"),
+            "{flag} {path}: {}",
+            run.stderr
+        );
+    }
+    let read = |name: &str| std::fs::read_to_string(tree.path().join(name)).unwrap();
+    assert_eq!(read("m/a.obj"), TETRA);
+    assert_eq!(read("m/b.obj"), TRIANGLE);
+
+    let run = meshvet(
+        tree.path(),
+        &["scan", "m", "--csv", "r.csv", "--json", "./r.csv", "-q"],
+    );
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    std::fs::write(tree.path().join("r.csv"), "last run").unwrap();
+    let run = meshvet(tree.path(), &["scan", "m", "--csv", "r.csv", "-q"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert_eq!(rows(&read("r.csv")).len(), 2);
+}
+
 #[test]
 fn bad_commands_exit_2() {
     let tree = Tree::new(&[("a.obj", TETRA)]);
