@@ -209,7 +209,7 @@ impl Rule {
             },
             Rule::SelfIntersection => &Doc {
                 name: "self-intersection",
-                summary: "two faces of one connected part cross or touch where they share no edge or vertex",
+                summary: "two faces of one connected part cross, touch or overlap, other than along an edge or at a vertex they share",
                 meaning: "A surface that passes through itself has no well-defined inside: slicers print or skip the overlap unpredictably, booleans and remeshing fail, and a volume or mass estimate is wrong.",
                 repair: "Not repaired automatically: move or remesh the crossing faces in a modelling tool (or run a remesher).",
                 default: Severity::Warning,
