@@ -1469,3 +1469,71 @@ fn the_sample_plate_is_repaired_in_place() {
     assert_eq!((a.faces, a.border_edges, a.volume()), (12, 0, Some(8000.0)));
     assert!(self::plans(&again).iter().all(Option::is_none));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Hostile XML: the work and memory of a read stay in proportion to what a mesh needs
+
+/// One tag of 100,000 attributes (300 kB), then the same tag with its first attribute again at
+/// the end. The duplicate check compared each attribute with every earlier one: 5e9 compares,
+/// many seconds; now it reads at once, and still finds the late duplicate.
+#[test]
+fn a_tag_with_a_hundred_thousand_attributes_reads_at_once() {
+    let (p, t) = tetrahedron();
+    let many: String = (0..100_000).map(|i| format!(" a{i}=\"1\"")).collect();
+    let object = mesh_object(1, "tet", &p, &t);
+    let text = |extra: &str| {
+        model(
+            &object.replacen("type=\"model\"", &format!("type=\"model\"{many}{extra}"), 1),
+            "<item objectid=\"1\"/>",
+        )
+    };
+    let meshes = read_ok(&package(&text("")));
+    assert_eq!(meshes[0].triangles.len(), 4);
+    let e = refused(&package(&text(" a0=\"2\"")), "has the attribute `a0` twice");
+    assert!(e.contains("<object>"), "{e}");
+}
+
+/// 100,000 namespace declarations in scope (20,000 on each of the five elements around the
+/// vertices), and 20,000 vertices the XML reader reads (`x ="..."` keeps them off the plain run),
+/// each declaring a prefix of its own and using it. Resolving a prefix searched every declaration
+/// in scope, and the end of each vertex filtered them all: 2e9 steps each, tens of seconds.
+#[test]
+fn a_hundred_thousand_namespace_declarations_in_scope_read_at_once() {
+    let n = 20_000;
+    let declare = |j: usize| -> String {
+        (0..n)
+            .map(|i| format!(" xmlns:p{j}_{i}=\"urn:{i}\""))
+            .collect()
+    };
+    let vertices: String = (0..n)
+        .map(|i| {
+            format!(
+                "<vertex xmlns:q=\"urn:q\" q:k=\"{i}\" x =\"{i}\" y=\"{}\" z=\"0\"/>",
+                i % 2
+            )
+        })
+        .collect();
+    let triangles: String = (0..n - 2)
+        .map(|i| format!("<triangle v1=\"{i}\" v2=\"{}\" v3=\"{}\"/>", i + 1, i + 2))
+        .collect();
+    let text = format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?><model unit=\"millimeter\" xmlns=\"{CORE}\"{}><resources{}><object id=\"1\"{}><mesh{}><vertices{}>{vertices}</vertices><triangles>{triangles}</triangles></mesh></object></resources><build><item objectid=\"1\"/></build></model>",
+        declare(0),
+        declare(1),
+        declare(2),
+        declare(3),
+        declare(4)
+    );
+    let meshes = read_ok(&package(&text));
+    assert_eq!(meshes[0].positions.len(), n);
+    assert_eq!(meshes[0].triangles.len(), n - 2);
+    assert_eq!(meshes[0].positions[n - 1], [(n - 1) as f64, 1.0, 0.0]);
+    // The declarations still end with their elements: the last prefix of <vertices> is out of
+    // scope in <triangles>.
+    let last = format!("p4_{}", n - 1);
+    let e = refused(
+        &package(&text.replacen("<triangles>", &format!("<triangles {last}:a=\"1\">"), 1)),
+        "without declaring it",
+    );
+    assert!(e.contains(&last), "{e}");
+}
