@@ -1537,3 +1537,48 @@ fn a_hundred_thousand_namespace_declarations_in_scope_read_at_once() {
     );
     assert!(e.contains(&last), "{e}");
 }
+
+/// `n` bytes of text that deflate no better than about 100 to 1 (spaces and a pseudo-random
+/// letter every 101 bytes), like the filler of real parts, so that the package passes the
+/// compression-ratio check and the XML reader meets it.
+fn filler(n: usize) -> String {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut out = String::with_capacity(n);
+    while out.len() < n {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        out.push_str(&" ".repeat(100));
+        out.push(char::from(b'a' + (state % 26) as u8));
+    }
+    out
+}
+
+/// A comment, a text and a tag of 40 MB each: one piece of XML is held in memory whole, so each
+/// took 40 MB or more (a 2 GB comment took 2.1 GB, a larger one aborted the scan). Each is
+/// refused at 16 MiB, with what it is and where it begins.
+#[test]
+fn a_piece_of_xml_over_sixteen_mebibytes_is_refused_unbuffered() {
+    let (p, t) = tetrahedron();
+    let good = model(&mesh_object(1, "tet", &p, &t), "<item objectid=\"1\"/>");
+    let big = filler(40 << 20);
+    for (piece, what) in [
+        (format!("<!--{big}-->"), "a comment"),
+        (format!("<metadata name=\"x\">{big}</metadata>"), "text"),
+        (format!("<metadata name=\"x{big}\"/>"), "a tag"),
+    ] {
+        let text = good.replacen("<resources>", &format!("{piece}<resources>"), 1);
+        let e = refused(&package(&text), "more than 16 MiB");
+        assert!(e.contains(what), "{what}: {e}");
+    }
+    // Up to the bound, a long text is read past.
+    let text = good.replacen(
+        "<resources>",
+        &format!(
+            "<metadata name=\"x\">{}</metadata><resources>",
+            filler(15 << 20)
+        ),
+        1,
+    );
+    assert_eq!(read_ok(&package(&text))[0].triangles.len(), 4);
+}

@@ -3,7 +3,8 @@
 //! matching, one root element, nothing left open), UTF-8, and no DTD of any kind: a `<!DOCTYPE>`
 //! is refused before anything it declares could be used, so no entity is ever expanded (billion
 //! laughs) or fetched (XXE). Only the five predefined entities and character references are
-//! understood; any other reference is an error.
+//! understood; any other reference is an error. No piece of XML (a text, a comment, a tag) may
+//! take [`MAX_PIECE`] bytes or more: the XML reader holds each piece whole in memory.
 //!
 //! Attributes and namespace declarations are read here, in one pass over each start tag whose
 //! results the caller then iterates ([`Xml::each_attribute`]): a million-vertex part is a million
@@ -13,7 +14,7 @@
 //! and namespace declarations a hostile part piles up.
 
 use std::borrow::Cow;
-use std::io::BufRead;
+use std::io::{self, BufRead, Read};
 use std::ops::Range;
 
 use quick_xml::events::{BytesStart, Event};
@@ -27,7 +28,7 @@ const XML_NAMESPACE: &[u8] = b"http://www.w3.org/XML/1998/namespace";
 
 /// A streaming reader of one part, with the checks above.
 pub struct Xml<R> {
-    reader: Reader<R>,
+    reader: Reader<Capped<R>>,
     /// The part's name for messages (`/3D/3dmodel.model`).
     pub part: String,
     depth: u32,
@@ -39,6 +40,95 @@ pub struct Xml<R> {
     attributes: Vec<(Range<usize>, Range<usize>)>,
     /// Bytes [`Xml::empty_run`] took from the source past the XML reader (which counts only its own).
     taken: u64,
+}
+
+/// The bytes one piece of XML (a text, a comment, a tag, ...) must stay under. quick-xml holds
+/// each piece whole in memory before it gives it, so without a bound a part's memory grew with its
+/// longest piece (a 2 GB comment took 2.1 GB; a larger one aborted the whole scan on a failed
+/// allocation). A 3MF model's longest pieces are a tag or a metadata text of a few kilobytes.
+const MAX_PIECE: usize = 16 << 20;
+
+/// The source of the XML reader: [`Xml::next`] lets each event take fewer than `cap` bytes from
+/// it, then reading fails with [`TooLong`].
+struct Capped<R> {
+    inner: R,
+    cap: usize,
+    /// Bytes the current event may still take.
+    left: usize,
+    /// The first bytes the current event took, to say what it is when it is too long.
+    head: [u8; 9],
+    head_len: usize,
+}
+
+impl<R: BufRead> Capped<R> {
+    /// Starts an event.
+    fn begin(&mut self) {
+        self.left = self.cap;
+        self.head_len = 0;
+    }
+
+    /// What the current event is, in words, from its first bytes.
+    fn piece(&self) -> &'static str {
+        let head = &self.head[..self.head_len];
+        if head.starts_with(b"<!--") {
+            "a comment"
+        } else if head.starts_with(b"<![CDATA[") {
+            "a CDATA section"
+        } else if head.starts_with(b"<!") {
+            "a document type declaration"
+        } else if head.starts_with(b"<?") {
+            "a processing instruction"
+        } else if head.starts_with(b"<") {
+            "a tag"
+        } else {
+            "text"
+        }
+    }
+}
+
+/// The error of an event that reached [`Capped::cap`] bytes.
+#[derive(Debug)]
+struct TooLong;
+
+impl std::fmt::Display for TooLong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a piece of XML is too long")
+    }
+}
+
+impl std::error::Error for TooLong {}
+
+impl<R: BufRead> Read for Capped<R> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        let bytes = self.fill_buf()?;
+        let n = bytes.len().min(out.len());
+        out[..n].copy_from_slice(&bytes[..n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for Capped<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        if self.left == 0 {
+            return Err(io::Error::other(TooLong));
+        }
+        let bytes = self.inner.fill_buf()?;
+        Ok(&bytes[..bytes.len().min(self.left)])
+    }
+
+    fn consume(&mut self, n: usize) {
+        if self.head_len < self.head.len() {
+            // The bytes consumed are in the buffer: this reads nothing.
+            if let Ok(bytes) = self.inner.fill_buf() {
+                let more = n.min(self.head.len() - self.head_len).min(bytes.len());
+                self.head[self.head_len..self.head_len + more].copy_from_slice(&bytes[..more]);
+                self.head_len += more;
+            }
+        }
+        self.left -= n;
+        self.inner.consume(n);
+    }
 }
 
 /// Tags with at most this many attributes are checked for a repeated name pairwise.
@@ -130,7 +220,13 @@ fn split(name: &[u8]) -> (Option<&[u8]>, &[u8]) {
 
 impl<R: BufRead> Xml<R> {
     pub fn new(source: R, part: &str) -> Xml<R> {
-        let mut reader = Reader::from_reader(source);
+        let mut reader = Reader::from_reader(Capped {
+            inner: source,
+            cap: MAX_PIECE,
+            left: MAX_PIECE,
+            head: [0; 9],
+            head_len: 0,
+        });
         let config = reader.config_mut();
         config.check_end_names = true;
         config.expand_empty_elements = false;
@@ -174,7 +270,8 @@ impl<R: BufRead> Xml<R> {
         }
         loop {
             let part = &self.part;
-            let source = self.reader.get_mut();
+            // Past the bound of one event: a run takes only tags whole in the source's buffer.
+            let source = &mut self.reader.get_mut().inner;
             let mut attributes: [(&[u8], &[u8]); RUN_ATTRIBUTES] = [(&[], &[]); RUN_ATTRIBUTES];
             let bytes = match source.fill_buf() {
                 Ok(bytes) => bytes,
@@ -222,6 +319,7 @@ impl<R: BufRead> Xml<R> {
         // Declarations of elements that have ended (or were empty) go out of scope.
         self.namespaces.end(self.depth);
         self.start = self.position();
+        self.reader.get_mut().begin();
         let event = match self.reader.read_event_into(buf) {
             Ok(event) => event,
             Err(e) => return Err(self.malformed(&e)),
@@ -482,6 +580,18 @@ impl<R: BufRead> Xml<R> {
 
     fn malformed(&self, e: &quick_xml::Error) -> ReadError {
         if let quick_xml::Error::Io(io) = e {
+            if io.get_ref().is_some_and(|e| e.is::<TooLong>()) {
+                let source = self.reader.get_ref();
+                let size = match source.cap {
+                    cap if cap >= 1 << 20 => format!("{} MiB", cap >> 20),
+                    cap => format!("{cap} bytes"),
+                };
+                return self.error(&format!(
+                    "has {} of more than {size} at byte {}: a 3MF model needs none that long, and meshvet holds no piece of XML that large in memory - the file is damaged or hostile; re-export it",
+                    source.piece(),
+                    self.start
+                ));
+            }
             return ReadError::new(io_message(io, self.part.trim_start_matches('/')));
         }
         self.error(&format!(
@@ -683,6 +793,61 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A piece of XML that reaches the bound is refused, with what it is; up to the bound it is
+    /// read, and runs of plain tags are not held to it (they are many events).
+    #[test]
+    fn pieces_of_xml_are_bounded() {
+        let read = |text: &str| {
+            let mut xml = Xml::new(text.as_bytes(), "/t.xml");
+            xml.reader.get_mut().cap = 64;
+            let mut buf = Vec::new();
+            loop {
+                match xml.next(&mut buf) {
+                    Ok((Step::Eof, _)) => return Ok(buf.capacity()),
+                    Ok(_) => {}
+                    Err(e) => return Err(e.0),
+                }
+            }
+        };
+        let long = "x".repeat(64);
+        for (text, what) in [
+            (
+                format!("<a><!--{long}--></a>"),
+                "has a comment of more than 64 bytes at byte 3",
+            ),
+            (format!("<a>{long}</a>"), "has text of"),
+            (format!("<a><b c=\"{long}\"/></a>"), "has a tag of"),
+            (format!("<a><![CDATA[{long}]]></a>"), "has a CDATA section"),
+            (format!("<?pi {long}?><a/>"), "has a processing instruction"),
+            (
+                format!("<!DOCTYPE a [{long}]><a/>"),
+                "has a document type declaration",
+            ),
+        ] {
+            let e = read(&text).unwrap_err();
+            assert!(e.contains(what), "{text}: {e}");
+        }
+        let short = "x".repeat(50);
+        let text = format!("<a><!--{short}-->{short}<b c=\"{short}\"/>{short}</a>");
+        assert!(read(&text).unwrap() < 128);
+        // A run of plain tags is many events, not one piece.
+        let text = format!("<a xmlns=\"urn:a\">{}</a>", "<p x=\"1\"/>\n".repeat(100));
+        let mut xml = Xml::new(text.as_bytes(), "/t.xml");
+        xml.reader.get_mut().cap = 64;
+        let mut buf = Vec::new();
+        assert_eq!(xml.next(&mut buf).unwrap().0, Step::Start);
+        let mut run = 0;
+        xml.empty_run(b"p", b"urn:a", |_| {
+            run += 1;
+            Ok(true)
+        })
+        .unwrap();
+        assert_eq!(run, 100);
+        assert_eq!(xml.next(&mut buf).unwrap().0, Step::Other); // the last line break
+        assert_eq!(xml.next(&mut buf).unwrap().0, Step::End);
+        assert_eq!(xml.next(&mut buf).unwrap().0, Step::Eof);
     }
 
     #[test]
