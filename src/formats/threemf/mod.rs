@@ -10,9 +10,10 @@
 //! A mesh is named by its object's `name`, else `#id` (`/3D/part.model#id` in a part other than the
 //! root), with ` (#id)` added when two meshes share a name. Its notes say the model's unit and how
 //! many placements use it (`unit millimeter`, `2 placements`), its type when it is not `model`,
-//! and what it carries that is not checked (a beam lattice, unknown elements). Meshes come in
-//! document order: the root part's objects first, then the other parts' in the order they were
-//! first named. Objects of type `other` are not printable and give no mesh.
+//! and what it carries that is not checked (a beam lattice, unknown elements: one note per kind,
+//! with its count). Meshes come in document order: the root part's objects first, then the other
+//! parts' in the order they were first named. Objects of type `other` are not printable and give
+//! no mesh.
 //!
 //! Refused with a message (besides what the modules above refuse): no or more than one root model
 //! relationship, a model part that is missing or encrypted (listed in a secure-content keystore,
@@ -305,10 +306,17 @@ fn assemble(
         if object.kind != Kind::Model {
             notes.push(format!("type {}", object.kind.name()));
         }
-        let mut extras = data.extras.clone();
-        extras.dedup();
-        for extra in extras {
-            notes.push(format!("{extra} in the mesh is not checked"));
+        for (extra, count) in &data.extras {
+            notes.push(match count {
+                1 => format!("{extra} in the mesh is not checked"),
+                n => format!("{extra} in the mesh is not checked ({n} elements)"),
+            });
+        }
+        if data.other_extras > 0 {
+            notes.push(format!(
+                "{} more element(s) of other kinds in the mesh are not checked",
+                data.other_extras
+            ));
         }
         if data.unknown > 0 {
             notes.push(format!(

@@ -145,13 +145,32 @@ pub struct MeshData {
     /// `pid`, `p1`, `p2`, `p3` of every triangle ([`NONE`] where absent); only when kept.
     pub properties: Vec<[u32; 4]>,
     pub spans: Spans,
-    /// What else the `<mesh>` holds, in words (`beam lattice`, `triangle sets`, `<x>`).
-    pub extras: Vec<String>,
+    /// What else the `<mesh>` holds, in words (`beam lattice`, `triangle sets`, `<x>`), each kind
+    /// once with how many elements of it there are, at most [`EXTRA_KINDS`] kinds: a note per
+    /// element made a 2 KB file give a report row of 240,000 notes.
+    pub extras: Vec<(String, u64)>,
+    /// Elements of kinds past the first [`EXTRA_KINDS`].
+    pub other_extras: u64,
     /// Elements inside `<vertices>` or `<triangles>` that the core specification does not have.
     pub unknown: u64,
 }
 
+/// The kinds of elements a `<mesh>` holds besides its vertices and triangles that are named in
+/// notes; those past them are counted together.
+pub const EXTRA_KINDS: usize = 8;
+
 impl MeshData {
+    /// Counts an element of kind `extra` (see [`MeshData::extras`]).
+    fn add_extra(&mut self, extra: String) {
+        if let Some(kind) = self.extras.iter_mut().find(|(e, _)| *e == extra) {
+            kind.1 += 1;
+        } else if self.extras.len() < EXTRA_KINDS {
+            self.extras.push((extra, 1));
+        } else {
+            self.other_extras += 1;
+        }
+    }
+
     /// Adds a triangle (and its properties, when kept), counting it against the file's limit.
     fn push_triangle(
         &mut self,
@@ -438,7 +457,7 @@ pub fn parse<R: BufRead>(
             (Some(Node::Mesh), _, _) => {
                 let m = mesh.as_mut().expect("a mesh is open");
                 let ns = xml.namespace(e);
-                m.extras.push(extra_name(ns, local));
+                m.add_extra(extra_name(ns, local));
                 None
             }
             (Some(Node::Vertices | Node::Triangles), true, _) => {

@@ -75,7 +75,7 @@ fn write_unguarded(
                 continue;
             };
             let what = || format!("object {} of {}", object.id, read.names[p]);
-            if let Some(extra) = data.extras.first() {
+            if let Some((extra, _)) = data.extras.first() {
                 return Err(WriteError::new(format!(
                     "{} also holds {extra}, which numbers the mesh's vertices or triangles; a repair renumbers them, so a mesh with one cannot be written yet",
                     what()
