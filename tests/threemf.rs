@@ -1615,3 +1615,38 @@ fn unchecked_elements_give_one_note_per_kind() {
         "24 more element(s) of other kinds in the mesh are not checked"
     );
 }
+
+/// A model part is UTF-8: a name in Latin-1 (`caf\xe9`) was read as `caf\u{fffd}`. Refused,
+/// wherever the bad byte is; UTF-8 characters cut by every boundary of the reader's buffer still
+/// read.
+#[test]
+fn a_part_that_is_not_utf8_is_refused() {
+    let (p, t) = tetrahedron();
+    let good = model(&mesh_object(1, "tet", &p, &t), "<item objectid=\"1\"/>");
+    let bytes = |text: &[u8]| {
+        zip(&[
+            ("[Content_Types].xml", CONTENT_TYPES.as_bytes()),
+            ("_rels/.rels", ROOT_RELS.as_bytes()),
+            ("3D/3dmodel.model", text),
+        ])
+    };
+    for (from, to) in [
+        (&b"name=\"tet\""[..], &b"name=\"caf\xe9\""[..]),
+        (b"<build>", b"<!-- \xff --><build>"),
+        (b"</model>", b"</model>\xe2\x82"),
+    ] {
+        let text = good.as_bytes();
+        let at = text.windows(from.len()).position(|w| w == from).unwrap();
+        let bad = [&text[..at], to, &text[at + from.len()..]].concat();
+        let e = read_with(&bytes(&bad), limits()).unwrap_err();
+        assert!(e.contains("is not UTF-8"), "{e}");
+        assert!(e.contains("/3D/3dmodel.model"), "{e}");
+    }
+    // 200,000 characters of two, three and four bytes in a name and a comment.
+    let wide = "é€😀".repeat(200_000 / 3);
+    let text = good
+        .replacen("name=\"tet\"", &format!("name=\"{wide}\""), 1)
+        .replacen("<build>", &format!("<!--{wide}--><build>"), 1);
+    let meshes = read_ok(&bytes(text.as_bytes()));
+    assert_eq!(meshes[0].name.as_deref(), Some(wide.as_str()));
+}

@@ -109,7 +109,7 @@ impl Parts<'_> {
             ))
         })?;
         let model = model::parse(
-            BufReader::with_capacity(1 << 16, reader),
+            BufReader::with_capacity(1 << 16, xml::Utf8::new(reader, &name)),
             &settings,
             &mut self.totals,
         )?;

@@ -22,7 +22,7 @@ use rustc_hash::FxHashMap;
 use zip::{CompressionMethod, ZipArchive};
 
 use super::super::{Limits, ReadError};
-use super::xml::{io_message, Step, Xml};
+use super::xml::{io_message, Step, Utf8, Xml};
 
 /// The largest declared ratio of inflated to stored bytes a part may have (over [`RATIO_FLOOR`]).
 /// Mesh text compresses about 5 to 20 to 1; the most regular parts seen in published packages
@@ -99,7 +99,7 @@ impl Package {
         let Some(reader) = self.open_part(key)? else {
             return Ok(Vec::new());
         };
-        keystore(BufReader::new(reader), &name)
+        keystore(BufReader::new(Utf8::new(reader, &name)), &name)
     }
 
     /// The bytes of a part, inflated within the budget; `None` if there is no such part.
@@ -181,7 +181,7 @@ impl Package {
         let Some(reader) = self.open_part(rels)? else {
             return Ok(Vec::new());
         };
-        relationships(BufReader::new(reader), &name, source)
+        relationships(BufReader::new(Utf8::new(reader, &name)), &name, source)
     }
 
     /// The key of the `.rels` part of `part` (`3d/3dmodel.model` -> `3d/_rels/3dmodel.model.rels`).

@@ -1,10 +1,11 @@
 //! The XML rules every part of a 3MF package is read by, on top of quick-xml's streaming reader:
 //! well-formed and namespace-well-formed (every prefix declared, no attribute twice, end tags
-//! matching, one root element, nothing left open), UTF-8, and no DTD of any kind: a `<!DOCTYPE>`
-//! is refused before anything it declares could be used, so no entity is ever expanded (billion
-//! laughs) or fetched (XXE). Only the five predefined entities and character references are
-//! understood; any other reference is an error. No piece of XML (a text, a comment, a tag) may
-//! take [`MAX_PIECE`] bytes or more: the XML reader holds each piece whole in memory.
+//! matching, one root element, nothing left open), UTF-8 (the bytes of a part, through [`Utf8`]),
+//! and no DTD of any kind: a `<!DOCTYPE>` is refused before anything it declares could be used, so
+//! no entity is ever expanded (billion laughs) or fetched (XXE). Only the five predefined entities
+//! and character references are understood; any other reference is an error. No piece of XML (a
+//! text, a comment, a tag) may take [`MAX_PIECE`] bytes or more: the XML reader holds each piece
+//! whole in memory.
 //!
 //! Attributes and namespace declarations are read here, in one pass over each start tag whose
 //! results the caller then iterates ([`Xml::each_attribute`]): a million-vertex part is a million
@@ -704,6 +705,83 @@ fn unescape(value: &[u8]) -> Result<Cow<'_, [u8]>, String> {
     Ok(Cow::Owned(out))
 }
 
+/// The bytes of an XML part, failing from the first that is not UTF-8: 3MF parts are UTF-8, and
+/// XML in bytes that are not its encoding is not well-formed (a Latin-1 name was read as U+FFFD).
+/// Each block the inflater gives is checked whole, which costs far less than parsing it; a
+/// character cut by the end of a block is finished with the next.
+pub struct Utf8<R> {
+    inner: R,
+    part: String,
+    /// Bytes read so far.
+    read: u64,
+    /// The start of a character the last block cut, and how many of its bytes came.
+    cut: [u8; 4],
+    cut_len: usize,
+}
+
+impl<R: Read> Utf8<R> {
+    /// The bytes of `part` (named as in messages) from `inner`.
+    pub fn new(inner: R, part: &str) -> Utf8<R> {
+        Utf8 {
+            inner,
+            part: part.to_owned(),
+            read: 0,
+            cut: [0; 4],
+            cut_len: 0,
+        }
+    }
+
+    fn refuse(&self, at: u64) -> io::Error {
+        io::Error::other(format!(
+            "part {} is not UTF-8 (byte {at} is not part of a UTF-8 character): 3MF parts are UTF-8 XML - the file is damaged or was written in another encoding; re-export it",
+            self.part
+        ))
+    }
+}
+
+impl<R: Read> Read for Utf8<R> {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        if out.is_empty() {
+            return Ok(0);
+        }
+        let n = self.inner.read(out)?;
+        let start = self.read;
+        self.read += n as u64;
+        if n == 0 && self.cut_len > 0 {
+            return Err(self.refuse(start - self.cut_len as u64));
+        }
+        let mut bytes = &out[..n];
+        let mut at = start;
+        if self.cut_len > 0 {
+            let size = match self.cut[0] {
+                0xf0.. => 4,
+                0xe0.. => 3,
+                _ => 2,
+            };
+            let more = (size - self.cut_len).min(bytes.len());
+            self.cut[self.cut_len..self.cut_len + more].copy_from_slice(&bytes[..more]);
+            self.cut_len += more;
+            bytes = &bytes[more..];
+            at += more as u64;
+            match std::str::from_utf8(&self.cut[..self.cut_len]) {
+                Ok(_) => self.cut_len = 0,
+                Err(e) if e.error_len().is_none() => {} // still cut: the block was that short
+                Err(_) => return Err(self.refuse(start - (self.cut_len - more) as u64)),
+            }
+        }
+        if let Err(e) = std::str::from_utf8(bytes) {
+            let bad = at + e.valid_up_to() as u64;
+            if e.error_len().is_some() {
+                return Err(self.refuse(bad));
+            }
+            let tail = &bytes[e.valid_up_to()..];
+            self.cut[..tail.len()].copy_from_slice(tail);
+            self.cut_len = tail.len();
+        }
+        Ok(n)
+    }
+}
+
 /// The message for an I/O error while inflating `part`.
 pub fn io_message(e: &std::io::Error, part: &str) -> String {
     if e.kind() == std::io::ErrorKind::Other && e.get_ref().is_some() {
@@ -848,6 +926,48 @@ mod tests {
         assert_eq!(xml.next(&mut buf).unwrap().0, Step::Other); // the last line break
         assert_eq!(xml.next(&mut buf).unwrap().0, Step::End);
         assert_eq!(xml.next(&mut buf).unwrap().0, Step::Eof);
+    }
+
+    /// Valid UTF-8 passes however the blocks cut its characters; a bad byte, or a character cut
+    /// by the end of the part, is refused with where it is.
+    #[test]
+    fn parts_are_utf8() {
+        /// Gives its bytes `block` at a time.
+        struct Blocks<'a>(&'a [u8], usize);
+        impl Read for Blocks<'_> {
+            fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+                let n = self.1.min(out.len()).min(self.0.len());
+                out[..n].copy_from_slice(&self.0[..n]);
+                self.0 = &self.0[n..];
+                Ok(n)
+            }
+        }
+        let read = |bytes: &[u8], block: usize| {
+            let mut out = Vec::new();
+            Utf8::new(Blocks(bytes, block), "/t.xml")
+                .read_to_end(&mut out)
+                .map(|_| out)
+                .map_err(|e| e.to_string())
+        };
+        let good = "a é € 😀 z".as_bytes();
+        for block in 1..=good.len() {
+            assert_eq!(read(good, block).unwrap(), good);
+        }
+        for (bad, at) in [
+            (&b"ab\xffc"[..], 2),
+            (b"caf\xe9 ", 3),
+            (b"\xe2\x82x", 0),
+            (b"ok\xe2\x82", 2),
+            (b"\xc0\xaf", 0),
+        ] {
+            for block in 1..=bad.len() {
+                let e = read(bad, block).unwrap_err();
+                assert!(
+                    e.contains(&format!("is not UTF-8 (byte {at} ")),
+                    "{block}: {e}"
+                );
+            }
+        }
     }
 
     #[test]
