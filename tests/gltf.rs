@@ -357,6 +357,110 @@ fn buffer_shorter_than_its_byte_length_is_an_error() {
     assert!(err.contains("byteLength 60"), "{err}");
 }
 
+/// `n` buffers that all name `file` with `byte_length`, and one mesh per buffer whose triangle is
+/// the first 36 bytes of the file.
+fn buffers_sharing(file: &str, byte_length: usize, n: usize) -> String {
+    let each = |f: &dyn Fn(usize) -> String| (0..n).map(f).collect::<Vec<_>>().join(",");
+    doc(&[
+        (
+            "buffers",
+            format!(
+                "[{}]",
+                each(&|_| format!(r#"{{"uri":"{file}","byteLength":{byte_length}}}"#))
+            ),
+        ),
+        (
+            "bufferViews",
+            format!(
+                "[{}]",
+                each(&|i| format!(r#"{{"buffer":{i},"byteLength":36}}"#))
+            ),
+        ),
+        (
+            "accessors",
+            format!(
+                "[{}]",
+                each(&|i| format!(
+                    r#"{{"bufferView":{i},"componentType":{FLOAT},"type":"VEC3","count":3}}"#
+                ))
+            ),
+        ),
+        (
+            "meshes",
+            format!(
+                "[{}]",
+                each(&|i| format!(r#"{{"primitives":[{{"attributes":{{"POSITION":{i}}}}}]}}"#))
+            ),
+        ),
+    ])
+}
+
+/// A file whose first 36 bytes are the triangle (0,0,0) (1,0,0) (0,1,0), then zeros to `len`.
+fn triangle_file(len: usize) -> Vec<u8> {
+    let mut bytes = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
+    bytes.resize(len, 0);
+    bytes
+}
+
+/// 100 buffers naming one file read it once, and only the bytes they use: the file is twice the
+/// size limit (it is never read whole) and 100 copies of what the buffers use would be 60 times
+/// it, yet the asset reads, every mesh its triangle.
+#[test]
+fn buffers_sharing_a_file_read_it_once_and_only_what_they_use() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "big.bin", triangle_file(2_000_000));
+    let path = write(
+        dir.path(),
+        "many.gltf",
+        buffers_sharing("big.bin", 600_000, 100),
+    );
+    let mut context = cx(dir.path());
+    context.limits.max_file_bytes = 1_000_000;
+    let meshes = read(&path, Format::Gltf, &context).unwrap();
+    assert_eq!(meshes.len(), 100);
+    for mesh in &meshes {
+        assert_eq!(
+            mesh.positions,
+            vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]]
+        );
+        assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
+    }
+    // The file is shorter than a buffer that names it: an error, though it is shared.
+    let path = write(
+        dir.path(),
+        "short.gltf",
+        buffers_sharing("big.bin", 2_000_001, 2),
+    );
+    let err = read(&path, Format::Gltf, &cx(dir.path())).unwrap_err().0;
+    assert!(
+        err.contains("holds 2000000 bytes") && err.contains("byteLength 2000001"),
+        "{err}"
+    );
+}
+
+/// The files the buffers of one glTF read count together against the size limit of one file:
+/// two files each under it but over it together are an error naming the limit and what to do.
+#[test]
+fn buffer_files_over_the_size_limit_together_are_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "a.bin", triangle_file(600_000));
+    write(dir.path(), "b.bin", triangle_file(600_000));
+    let json =
+        buffers_sharing("a.bin", 600_000, 2).replacen(r#"{"uri":"a.bin""#, r#"{"uri":"b.bin""#, 1);
+    let path = write(dir.path(), "two.gltf", json);
+    let mut context = cx(dir.path());
+    context.limits.max_file_bytes = 1_000_000;
+    let err = read(&path, Format::Gltf, &context).unwrap_err().0;
+    assert!(
+        err.contains("1200000 bytes")
+            && err.contains("over the limit of 1000000")
+            && err.contains("raise limits.max_file_bytes"),
+        "{err}"
+    );
+    context.limits.max_file_bytes = 1_200_000;
+    assert_eq!(read(&path, Format::Gltf, &context).unwrap().len(), 2);
+}
+
 #[test]
 fn glb_without_bin_chunk_is_an_error() {
     let mut bytes = glb(&quad(None).json(), &[]);

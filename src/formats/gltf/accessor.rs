@@ -17,6 +17,8 @@ use super::super::{Limits, ReadError};
 pub struct Data<'a> {
     pub root: &'a Model,
     pub buffers: Vec<Option<Cow<'a, [u8]>>>,
+    /// The bytes behind `buffers`, a file that several buffers share counted once.
+    pub buffer_bytes: u64,
     pub limits: &'a Limits,
 }
 
@@ -93,10 +95,10 @@ pub fn views_of(accessor: &json::Accessor) -> impl Iterator<Item = usize> + '_ {
 pub const UNBACKED_PER_INPUT_BYTE: u64 = 8;
 
 impl Data<'_> {
-    /// The real bytes behind this asset: its JSON and every buffer loaded.
+    /// The real bytes behind this asset: its JSON and every buffer loaded (a shared file once:
+    /// 100 buffers naming one file do not make it 100 times the input).
     pub fn input_bytes(&self) -> u64 {
-        let buffers: u64 = self.buffers.iter().flatten().map(|b| b.len() as u64).sum();
-        self.root.json_bytes.saturating_add(buffers)
+        self.root.json_bytes.saturating_add(self.buffer_bytes)
     }
 
     /// Refuses an accessor without a buffer view that would expand to more than the limits, or

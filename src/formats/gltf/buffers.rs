@@ -4,6 +4,8 @@
 //! opened: the path is checked lexically first, then again after symbolic links are resolved.
 
 use std::borrow::Cow;
+use std::collections::BTreeSet;
+use std::io::Read as _;
 use std::path::PathBuf;
 
 use base64::engine::general_purpose::{GeneralPurpose, GeneralPurposeConfig};
@@ -16,14 +18,144 @@ use super::super::{Limits, ReadError};
 
 pub use super::super::contain::Location;
 
-/// Loads buffer `index`: the bytes it declares (`byteLength`), never fewer.
+/// The external files the buffers of one glTF read, each read once however many buffers name it,
+/// and only as far as they use it: a glTF buffer is the first `byteLength` bytes of its file, so
+/// a file is read up to the longest `byteLength` among its buffers. The bytes read from all the
+/// files together are held to `limits.max_file_bytes`, the limit of one file: without that, 100
+/// buffers naming one 20 MB file made 100 copies of it (2 GB) from a 20 KB glTF.
+pub struct Files {
+    /// The file each buffer reads (an index into `data`), if it names one that was read.
+    of_buffer: Vec<Option<usize>>,
+    data: Vec<Vec<u8>>,
+}
+
+/// A file the buffers name: its real path, how much of it they use, and whether a mesh needs it.
+struct Wanted {
+    path: PathBuf,
+    uri: String,
+    bytes: u64,
+    needed: bool,
+}
+
+impl Files {
+    /// Reads the files of the buffers a mesh needs (`needed`: any trouble is an error) and of
+    /// those only worth reading when they can be (`optional`: a buffer that cannot be loaded, or
+    /// would take the files over the limit, is left out). Data URIs and the GLB chunk are part of
+    /// the file itself, already within the limit.
+    pub fn read(
+        buffers: &[json::Buffer],
+        needed: &BTreeSet<usize>,
+        optional: &BTreeSet<usize>,
+        location: Option<&Location>,
+        limits: &Limits,
+    ) -> Result<Files, ReadError> {
+        let mut of_buffer = vec![None; buffers.len()];
+        let mut wanted: Vec<Wanted> = Vec::new();
+        let mut total = 0u64;
+        let uses = needed
+            .iter()
+            .map(|&i| (i, true))
+            .chain(optional.difference(needed).map(|&i| (i, false)));
+        for (index, must) in uses {
+            let Some(buffer) = buffers.get(index) else {
+                continue; // reported by whoever refers to it
+            };
+            let Some(uri) = buffer.uri.as_deref().filter(|uri| !has_scheme(uri, "data")) else {
+                continue;
+            };
+            let found = location
+                .ok_or_else(|| {
+                    ReadError::new(format!("buffer URI \"{uri}\" cannot be resolved here"))
+                })
+                .and_then(|location| resolve(uri, location))
+                .and_then(|path| {
+                    let size = std::fs::metadata(&path)
+                        .map_err(|e| ReadError::new(format!("buffer URI \"{uri}\": {e}")))?
+                        .len();
+                    Ok((path, size))
+                });
+            let (path, size) = match found {
+                Ok(found) => found,
+                Err(e) if must => return Err(e),
+                Err(_) => continue,
+            };
+            // What this buffer uses of the file; a file shorter than it is reported on loading.
+            let bytes = buffer.byte_length.0.min(size);
+            let file = match wanted.iter().position(|w| w.path == path) {
+                Some(file) => file,
+                None => {
+                    wanted.push(Wanted {
+                        path,
+                        uri: uri.to_owned(),
+                        bytes: 0,
+                        needed: false,
+                    });
+                    wanted.len() - 1
+                }
+            };
+            let more = bytes.saturating_sub(wanted[file].bytes);
+            if total.saturating_add(more) > limits.max_file_bytes {
+                if !must {
+                    continue;
+                }
+                return Err(ReadError::new(format!(
+                    "the buffers of this file read {} bytes from {} file(s) (\"{uri}\" is the \
+                     last), over the limit of {} bytes for one file: raise \
+                     limits.max_file_bytes in the config to scan it",
+                    total.saturating_add(more),
+                    wanted.len(),
+                    limits.max_file_bytes
+                )));
+            }
+            total += more;
+            let w = &mut wanted[file];
+            w.bytes += more;
+            w.needed |= must;
+            of_buffer[index] = Some(file);
+        }
+        let mut data = Vec::with_capacity(wanted.len());
+        for w in &wanted {
+            // Sized from the file's size, within the limit; the file may shrink meanwhile.
+            let mut bytes = Vec::with_capacity(w.bytes as usize);
+            let read =
+                std::fs::File::open(&w.path).and_then(|f| f.take(w.bytes).read_to_end(&mut bytes));
+            if let Err(e) = read {
+                if w.needed {
+                    return Err(ReadError::new(format!(
+                        "cannot read buffer file \"{}\": {e}",
+                        w.uri
+                    )));
+                }
+                // Only optional buffers read it: they are left out.
+                of_buffer
+                    .iter_mut()
+                    .filter(|f| **f == Some(data.len()))
+                    .for_each(|f| *f = None);
+            }
+            data.push(bytes);
+        }
+        Ok(Files { of_buffer, data })
+    }
+
+    /// The bytes read from all the files.
+    pub fn bytes(&self) -> u64 {
+        self.data.iter().map(|d| d.len() as u64).sum()
+    }
+
+    /// Whether buffer `index` reads one of these files.
+    pub fn holds(&self, index: usize) -> bool {
+        matches!(self.of_buffer.get(index), Some(Some(_)))
+    }
+}
+
+/// Loads buffer `index`: the bytes it declares (`byteLength`), never fewer. Its file, if it names
+/// one, is among `files`.
 pub fn load<'a>(
     index: usize,
     buffer: &json::Buffer,
     bin: Option<&'a [u8]>,
     is_glb: bool,
-    location: Option<&Location>,
-    limits: &Limits,
+    files: &'a Files,
 ) -> Result<Cow<'a, [u8]>, ReadError> {
     let declared = buffer.byte_length.0;
     let (data, source): (Cow<'a, [u8]>, String) = match buffer.uri.as_deref() {
@@ -44,24 +176,18 @@ pub fn load<'a>(
             Cow::Owned(decode_data_uri(uri, index)?),
             format!("buffer {index} (data URI)"),
         ),
-        Some(uri) => {
-            let location = location.ok_or_else(|| {
-                ReadError::new(format!("buffer URI \"{uri}\" cannot be resolved here"))
-            })?;
-            let path = resolve(uri, location)?;
-            let size = std::fs::metadata(&path)
-                .map_err(|e| ReadError::new(format!("buffer URI \"{uri}\": {e}")))?
-                .len();
-            if size > limits.max_file_bytes {
+        Some(uri) => match files.of_buffer.get(index).copied().flatten() {
+            Some(file) => (
+                Cow::Borrowed(files.data[file].as_slice()),
+                format!("buffer file \"{uri}\""),
+            ),
+            None => {
                 return Err(ReadError::new(format!(
-                    "buffer file \"{uri}\" is {size} bytes, over the limit of {} bytes: raise limits.max_file_bytes in the config to scan it",
-                    limits.max_file_bytes
-                )));
+                    "buffer {index} (\"{uri}\") was not loaded (internal error: please report \
+                     this file)"
+                )))
             }
-            let data = std::fs::read(&path)
-                .map_err(|e| ReadError::new(format!("cannot read buffer file \"{uri}\": {e}")))?;
-            (Cow::Owned(data), format!("buffer file \"{uri}\""))
-        }
+        },
     };
     if (data.len() as u64) < declared {
         return Err(ReadError::new(format!(

@@ -14,6 +14,7 @@
 //! Old accessors stay in the document unused.
 
 use std::borrow::Cow;
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
@@ -78,8 +79,8 @@ fn write_unguarded(
         None
     };
 
-    // Every buffer the repaired meshes read.
-    let mut loaded: Vec<Option<Cow<'_, [u8]>>> = vec![None; model.buffers.len()];
+    // Every buffer the repaired meshes read, their files each read once (as the reader does).
+    let mut needed = BTreeSet::new();
     for (m, plan) in plans.iter().enumerate() {
         if plan.is_none() {
             continue;
@@ -107,24 +108,33 @@ fn write_unguarded(
                         .buffer_views
                         .get(view)
                         .ok_or_else(|| bad(format!("buffer view {view} is missing")))?;
-                    let b = view.buffer.value();
-                    if loaded.get(b).is_some_and(Option::is_none) {
-                        loaded[b] = Some(buffers::load(
-                            b,
-                            &model.buffers[b],
-                            container.bin,
-                            container.is_glb,
-                            location.as_ref(),
-                            &cx.limits,
-                        )?);
-                    }
+                    needed.insert(view.buffer.value());
                 }
             }
+        }
+    }
+    let files = buffers::Files::read(
+        &model.buffers,
+        &needed,
+        &BTreeSet::new(),
+        location.as_ref(),
+        &cx.limits,
+    )?;
+    let mut loaded: Vec<Option<Cow<'_, [u8]>>> = vec![None; model.buffers.len()];
+    let mut buffer_bytes = files.bytes();
+    for &b in &needed {
+        if let Some(buffer) = model.buffers.get(b) {
+            let data = buffers::load(b, buffer, container.bin, container.is_glb, &files)?;
+            if !files.holds(b) {
+                buffer_bytes += data.len() as u64;
+            }
+            loaded[b] = Some(data);
         }
     }
     let data = Data {
         root: &model,
         buffers: loaded,
+        buffer_bytes,
         limits: &cx.limits,
     };
 
