@@ -767,3 +767,44 @@ fn mtl_over_the_size_limit_is_not_read() {
         "{notes}"
     );
 }
+
+/// A library named on 50,000 lines is looked up, read and parsed once, and its note given once;
+/// so is a missing one. Distinct libraries past the first few that give notes are summed up in
+/// one note, not one each: a file of 200,000 `mtllib` lines made a 27 MB message.
+#[test]
+fn each_material_library_is_read_once_and_noted_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut mtl: String = (0..200)
+        .map(|i| format!("newmtl m{i}\nKd 1 0 0\n"))
+        .collect();
+    mtl.push_str("newmtl bad\nKd 1 0\n");
+    std::fs::write(dir.path().join("a.mtl"), &mtl).unwrap();
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    for _ in 0..50_000 {
+        obj.push_str("mtllib a.mtl\nmtllib gone.mtl\nmtllib ./a.mtl\n");
+    }
+    for i in 0..1000 {
+        obj.push_str(&format!("mtllib gone{i}.mtl\n"));
+    }
+    let path = dir.path().join("m.obj");
+    std::fs::write(&path, obj).unwrap();
+    let root = dir.path().to_path_buf();
+    let m = within(20, move || load_path(&path, &root)).unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    let count = |s: &str| m.notes.iter().filter(|n| n.contains(s)).count();
+    // `./a.mtl` is the same file: read once, noted once.
+    assert_eq!(
+        count("colour `Kd` has 2 value(s)"),
+        1,
+        "{:?}",
+        &m.notes[..5]
+    );
+    assert_eq!(count("`a.mtl` line 402"), 1);
+    assert_eq!(count("`gone.mtl` (line 6) not found"), 1);
+    assert!(m.notes.len() <= 21, "{}", m.notes.len());
+    let last = m.notes.last().unwrap();
+    assert!(
+        last.contains("982 more material libraries") && last.contains("line 150023"),
+        "{last}"
+    );
+}
