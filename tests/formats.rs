@@ -808,3 +808,61 @@ fn each_material_library_is_read_once_and_noted_once() {
         "{last}"
     );
 }
+
+/// The unit-axes tetrahedron (4 faces, closed, volume 1/6) written with LF, CRLF and bare-CR
+/// (classic Mac OS) line ends reads the same in OBJ, ASCII STL and OFF: a bare-CR file came out
+/// `empty` (OBJ, STL) or "truncated" (OFF). A stray CR inside a line of an LF file stays a blank.
+#[test]
+fn lf_crlf_and_bare_cr_line_ends_read_the_same() {
+    let p = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]];
+    let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let obj: Vec<String> = p
+        .iter()
+        .map(|q| format!("v {} {} {}", q[0], q[1], q[2]))
+        .chain(
+            faces
+                .iter()
+                .map(|f| format!("f {} {} {}", f[0] + 1, f[1] + 1, f[2] + 1)),
+        )
+        .collect();
+    let mut stl = vec!["solid tet".to_string()];
+    for f in faces {
+        stl.extend(["facet normal 0 0 0".into(), "outer loop".into()]);
+        stl.extend(f.map(|i| format!("vertex {} {} {}", p[i][0], p[i][1], p[i][2])));
+        stl.extend(["endloop".into(), "endfacet".into()]);
+    }
+    stl.push("endsolid tet".into());
+    let off: Vec<String> = ["OFF".to_string(), "4 4 6".into()]
+        .into_iter()
+        .chain(p.iter().map(|q| format!("{} {} {}", q[0], q[1], q[2])))
+        .chain(
+            faces
+                .iter()
+                .map(|f| format!("3 {} {} {}", f[0], f[1], f[2])),
+        )
+        .collect();
+    for (name, lines) in [("t.obj", &obj), ("t.stl", &stl), ("t.off", &off)] {
+        let mut seen = Vec::new();
+        for end in ["\n", "\r\n", "\r"] {
+            let text = lines.join(end) + end;
+            let mesh = ok(name, text.as_bytes());
+            assert!(mesh.notes.is_empty(), "{name} {end:?}: {:?}", mesh.notes);
+            let a = meshvet::analyse(&mesh, &meshvet::Options::default());
+            assert_eq!(a.faces, 4, "{name} {end:?}");
+            assert_eq!(a.shells.len(), 1, "{name} {end:?}");
+            assert!(a.components[0].closed, "{name} {end:?}");
+            let volume = a.shells[0].volume.unwrap();
+            assert!(
+                (volume - 1.0 / 6.0).abs() < 1e-12,
+                "{name} {end:?}: {volume}"
+            );
+            seen.push(format!("{a:?}"));
+        }
+        assert!(seen.iter().all(|s| *s == seen[0]), "{name}: {seen:#?}");
+    }
+    // A stray CR inside a line of an LF file is a blank, not a line end.
+    let stray = obj.join("\n").replacen("v 1 0 0", "v 1\r0 0", 1) + "\n";
+    assert_eq!(ok("s.obj", stray.as_bytes()).triangles.len(), 4);
+    let stray = off.join("\n").replacen("4 4 6", "4\r4 6", 1) + "\n";
+    assert_eq!(ok("s.off", stray.as_bytes()).triangles.len(), 4);
+}

@@ -48,6 +48,7 @@ pub(crate) const SIDE_FILES: SideFiles = SideFiles {
 /// The names after `mtllib`: the whole rest of the line and each word of it (the reader accepts a
 /// name with spaces and several names).
 fn mtllib_names(bytes: &[u8]) -> Vec<String> {
+    let bytes = &*text::lf_line_ends(bytes);
     let mut names = Vec::new();
     let mut take = |line: &[u8]| {
         let Some(rest) = line.trim_ascii_start().strip_prefix(b"mtllib") else {
@@ -294,7 +295,8 @@ fn parse_lines(
     quick: bool,
 ) -> Result<Parsed, ReadError> {
     let mut notes = Vec::new();
-    let text = decode(bytes, &mut notes)?;
+    let bytes = text::lf_line_ends(bytes);
+    let text = decode(&bytes, &mut notes)?;
     let mut p = Parser {
         cx,
         mesh: Mesh::default(),

@@ -109,7 +109,8 @@ fn parse_lines(
     quick: bool,
 ) -> Result<Mesh, ReadError> {
     let mut mesh = Mesh::default();
-    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let bytes = text::lf_line_ends(bytes);
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
     let mut lines = Lines {
         rest: bytes,
         line: 0,

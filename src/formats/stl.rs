@@ -222,7 +222,8 @@ fn word(token: &[u8]) -> String {
 }
 
 fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
-    let mut tokens = text::Tokens::<false>::new(bytes, 1);
+    let bytes = text::lf_line_ends(bytes);
+    let mut tokens = text::Tokens::<false>::new(&bytes, 1);
     let mut mesh = Mesh::default();
     let mut tally = SplitTally::default();
     let mut solids = 0u64;

@@ -14,6 +14,8 @@
 //! parser: the correctly rounded `f64`, `inf`, `nan` and `infinity` in any case, with a sign),
 //! integers eight digits at a time (an optional sign, then ASCII digits, no overflow).
 
+use std::borrow::Cow;
+
 use super::ReadError;
 
 /// How many leading bytes decide whether a file is text.
@@ -166,6 +168,23 @@ fn invalid_utf8_bytes(mut bytes: &[u8]) -> usize {
             },
         }
     }
+}
+
+/// The bytes of a text file with its line ends as the readers find them, at line feeds. Classic
+/// Mac OS ended lines with a lone CR, and a file of those read as one line (OBJ and ASCII STL
+/// came out `empty`, OFF "truncated"); so a file with no line feed at all but a CR is read as if
+/// each CR were a line feed. Any file with a line feed (LF, CRLF, a stray CR inside a line of
+/// either) is left as it is, and costs only the search up to its first line feed.
+pub(crate) fn lf_line_ends(bytes: &[u8]) -> Cow<'_, [u8]> {
+    if memchr::memchr(b'\n', bytes).is_some() || memchr::memchr(b'\r', bytes).is_none() {
+        return Cow::Borrowed(bytes);
+    }
+    Cow::Owned(
+        bytes
+            .iter()
+            .map(|&b| if b == b'\r' { b'\n' } else { b })
+            .collect(),
+    )
 }
 
 /// The words of a line: the runs of bytes between ASCII whitespace, as `str::split_ascii_whitespace`

@@ -90,6 +90,7 @@ fn binary_count(bytes: &[u8]) -> Option<usize> {
 /// The name after the first `solid`, trimmed.
 fn solid_name(bytes: &[u8]) -> String {
     let text = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
-    let line = text.trim_start().lines().next().unwrap_or("");
+    // The first line, whichever line end it has (a bare CR too, as the reader allows).
+    let line = text.trim_start().split(['\n', '\r']).next().unwrap_or("");
     line.get(5..).unwrap_or("").trim().to_string()
 }
