@@ -207,6 +207,52 @@ fn lines_with<'a>(text: &'a str, keyword: &str) -> Vec<&'a str> {
         .collect()
 }
 
+/// A copy's material libraries and textures are read as the reader reads them: a library or
+/// texture that is a link to a file outside the scanned tree is neither read nor copied (the
+/// reader refuses it too), and a library named on many lines is copied once.
+#[cfg(unix)]
+#[test]
+fn obj_copies_no_linked_file_from_outside_the_tree_and_each_library_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tree, out) = (dir.path().join("tree"), dir.path().join("out"));
+    std::fs::create_dir_all(&tree).unwrap();
+    let secret = dir.path().join("secret.txt");
+    std::fs::write(&secret, "outside the tree").unwrap();
+    std::os::unix::fs::symlink(&secret, tree.join("linked.mtl")).unwrap();
+    std::os::unix::fs::symlink(&secret, tree.join("linked.png")).unwrap();
+    std::fs::write(
+        tree.join("real.mtl"),
+        "newmtl m\nKd 1 1 1\nmap_Kd linked.png\nmap_Ks in.png\n",
+    )
+    .unwrap();
+    std::fs::write(tree.join("in.png"), "inside").unwrap();
+    let mut obj = "mtllib linked.mtl\nmtllib real.mtl\n".repeat(1000);
+    obj += "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n";
+    let source = tree.join("m.obj");
+    std::fs::write(&source, obj).unwrap();
+    let mesh = read(&source, Format::Obj, &cx(&tree)).unwrap().remove(0);
+    let copy = out.join("m.obj");
+    let files = write_repaired(
+        &source,
+        Format::Obj,
+        &[Some(identity(&mesh))],
+        &copy,
+        &cx(&tree),
+    )
+    .unwrap();
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| f.strip_prefix(&out).unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["m.obj", "real.mtl", "in.png"]);
+    for entry in walkdir::WalkDir::new(&out).into_iter().flatten() {
+        if entry.file_type().is_file() {
+            let bytes = std::fs::read(entry.path()).unwrap();
+            assert_ne!(bytes, b"outside the tree", "{}", entry.path().display());
+        }
+    }
+}
+
 /// A textured OBJ cube in two groups and materials, with an unreferenced vertex; quad 0 flipped
 /// whole (written back as the reversed quad), one triangle of quad 1 flipped (written as
 /// triangles), one triangle of quad 2 dropped and filled, a vertex copy on quad 3.

@@ -6,6 +6,7 @@
 //! `mtllib` is kept, and the libraries and the textures they name are copied next to the copy
 //! (only files inside the source's folder). Comments, points and lines are not kept.
 
+use std::collections::HashSet;
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
@@ -14,7 +15,7 @@ use super::{
     Polygons, WriteError, Written,
 };
 use crate::formats::obj::{read_full, Detail, State};
-use crate::formats::ReadContext;
+use crate::formats::{contain, ReadContext};
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
@@ -192,7 +193,7 @@ fn copy(
     text.push_str(&faces);
     write_atomic(out, text.as_bytes())?;
 
-    copy_materials(source, out, &detail.mtllibs)
+    copy_materials(source, out, &detail.mtllibs, &cx.root)
 }
 
 fn parse3(text: &str) -> Option<[f64; 3]> {
@@ -226,26 +227,40 @@ fn switch_state(out: &mut String, state: &mut State, wanted: &State) {
 }
 
 /// Copies each material library, and the texture files it names, next to the copy (same relative
-/// names), when they are files inside the source's folder.
+/// names), when they are files inside the source's folder, each once however often it is named.
+/// What is read follows the readers' containment rule ([`contain`]): a library or texture that is
+/// a link to a file outside the scanned tree `root` is not read, so not copied either.
 fn copy_materials(
     source: &Path,
     out: &Path,
     mtllibs: &[String],
+    root: &Path,
 ) -> Result<Vec<PathBuf>, WriteError> {
-    let from = source.parent().unwrap_or(Path::new(""));
     let to = out.parent().unwrap_or(Path::new(""));
+    let Ok(location) = contain::Location::new(source, root) else {
+        return Ok(Vec::new()); // the source's read could not resolve it either
+    };
+    // The real file behind `rel` (inside the source's folder), if it may be read.
+    let real = |rel: &Path| {
+        let joined = contain::join(&rel.to_string_lossy(), &location).ok()?;
+        contain::resolve(&joined, &location).ok()
+    };
+    let mut done = HashSet::new();
     let mut written = Vec::new();
     for lib in mtllibs {
-        let names: Vec<&str> = if from.join(lib).is_file() {
+        let names: Vec<&str> = if inside(lib).and_then(|rel| real(&rel)).is_some() {
             vec![lib.as_str()]
         } else {
             lib.split_ascii_whitespace().collect()
         };
         for name in names {
             let Some(rel) = inside(name) else { continue };
-            let path = from.join(&rel);
-            let Ok(bytes) = std::fs::read(&path) else {
-                continue; // a missing .mtl was a note when scanned; the copy is as good as the source
+            if !done.insert(rel.clone()) {
+                continue;
+            }
+            // A missing .mtl was a note when scanned; the copy is as good as the source.
+            let Some(bytes) = real(&rel).and_then(|path| std::fs::read(path).ok()) else {
+                continue;
             };
             write_atomic(&to.join(&rel), &bytes)?;
             written.push(to.join(&rel));
@@ -257,8 +272,10 @@ fn copy_materials(
                 let Some(rel) = inside(&rel.to_string_lossy()) else {
                     continue;
                 };
-                let path = from.join(&rel);
-                if path.is_file() {
+                if !done.insert(rel.clone()) {
+                    continue;
+                }
+                if let Some(path) = real(&rel) {
                     super::copy_beside(&path, &to.join(&rel))?;
                     written.push(to.join(&rel));
                 }
