@@ -12,6 +12,7 @@ use base64::engine::general_purpose::{GeneralPurpose, GeneralPurposeConfig};
 use base64::engine::DecodePaddingMode;
 use base64::Engine as _;
 use gltf::json;
+use rustc_hash::FxHashMap;
 
 use super::super::contain::{self, Unresolved};
 use super::super::{Limits, ReadError};
@@ -51,6 +52,7 @@ impl Files {
     ) -> Result<Files, ReadError> {
         let mut of_buffer = vec![None; buffers.len()];
         let mut wanted: Vec<Wanted> = Vec::new();
+        let mut index_of: FxHashMap<PathBuf, usize> = FxHashMap::default();
         let mut total = 0u64;
         let uses = needed
             .iter()
@@ -81,18 +83,17 @@ impl Files {
             };
             // What this buffer uses of the file; a file shorter than it is reported on loading.
             let bytes = buffer.byte_length.0.min(size);
-            let file = match wanted.iter().position(|w| w.path == path) {
-                Some(file) => file,
-                None => {
-                    wanted.push(Wanted {
-                        path,
-                        uri: uri.to_owned(),
-                        bytes: 0,
-                        needed: false,
-                    });
-                    wanted.len() - 1
-                }
-            };
+            // Found by its real path in a map: a glTF of 100,000 buffers naming as many files
+            // would make a search of the list quadratic.
+            let file = *index_of.entry(path.clone()).or_insert_with(|| {
+                wanted.push(Wanted {
+                    path,
+                    uri: uri.to_owned(),
+                    bytes: 0,
+                    needed: false,
+                });
+                wanted.len() - 1
+            });
             let more = bytes.saturating_sub(wanted[file].bytes);
             if total.saturating_add(more) > limits.max_file_bytes {
                 if !must {
