@@ -809,6 +809,30 @@ fn each_material_library_is_read_once_and_noted_once() {
     );
 }
 
+/// The cap on library notes counts library notes only: after the reader's own notes (points,
+/// lines, an unknown keyword), twenty missing libraries are each named, with no summing-up note.
+#[test]
+fn the_cap_on_library_notes_counts_only_library_notes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut obj = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\np 1\nl 1 2\nzz 1\n");
+    for i in 0..20 {
+        obj.push_str(&format!("mtllib gone{i}.mtl\n"));
+    }
+    let path = dir.path().join("m.obj");
+    std::fs::write(&path, obj).unwrap();
+    let m = load_path(&path, dir.path()).unwrap();
+    let missing = m.notes.iter().filter(|n| n.contains("not found")).count();
+    assert!(m.notes.len() > 20, "{:?}", m.notes);
+    assert_eq!(missing, 20, "{:?}", m.notes);
+    assert!(
+        !m.notes
+            .iter()
+            .any(|n| n.contains("more material libraries")),
+        "{:?}",
+        m.notes
+    );
+}
+
 /// The unit-axes tetrahedron (4 faces, closed, volume 1/6) written with LF, CRLF and bare-CR
 /// (classic Mac OS) line ends reads the same in OBJ, ASCII STL and OFF: a bare-CR file came out
 /// `empty` (OBJ, STL) or "truncated" (OFF). A stray CR inside a line of an LF file stays a blank.

@@ -112,7 +112,7 @@ fn read_with(
     let mut lines_seen = HashSet::new();
     let mut names_seen = HashSet::new();
     let mut files_read = HashSet::new();
-    let mut more = (0u64, 0u64);
+    let (mut noted, mut more) = (0, (0u64, 0u64));
     for (name, line) in &parsed.mtllibs {
         if !lines_seen.insert(name.as_str()) {
             continue;
@@ -122,7 +122,8 @@ fn read_with(
                 continue;
             }
             if let Some(note) = check_mtl(&location, name, *line, &cx.limits, &mut files_read) {
-                if mesh.notes.len() < MTL_NOTES {
+                if noted < MTL_NOTES {
+                    noted += 1;
                     mesh.notes.push(note);
                 } else {
                     count(&mut more, *line);
