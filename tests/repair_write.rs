@@ -253,6 +253,30 @@ fn obj_copies_no_linked_file_from_outside_the_tree_and_each_library_once() {
     }
 }
 
+/// An OBJ and its library with bare-CR (classic Mac OS) line ends, as the reader takes them: the
+/// copy gets the library and the texture it names.
+#[test]
+fn obj_copy_of_a_bare_cr_file_keeps_its_library_and_texture() {
+    let (_dir, src, out) = dirs();
+    std::fs::write(src.join("m.mtl"), "newmtl m\rKd 1 1 1\rmap_Kd tex/m.png\r").unwrap();
+    std::fs::write(src.join("tex/m.png"), "texture").unwrap();
+    let obj = "mtllib m.mtl\rv 0 0 0\rv 1 0 0\rv 0 1 0\rusemtl m\rf 1 2 3\r";
+    let source = src.join("m.obj");
+    std::fs::write(&source, obj).unwrap();
+    let mesh = read(&source, Format::Obj, &cx(&src)).unwrap().remove(0);
+    assert_eq!(mesh.triangles.len(), 1);
+    let copy = out.join("m.obj");
+    let files = write_repaired(
+        &source,
+        Format::Obj,
+        &[Some(identity(&mesh))],
+        &copy,
+        &cx(&src),
+    )
+    .unwrap();
+    assert_eq!(files, [copy, out.join("m.mtl"), out.join("tex/m.png")]);
+}
+
 /// A textured OBJ cube in two groups and materials, with an unreferenced vertex; quad 0 flipped
 /// whole (written back as the reversed quad), one triangle of quad 1 flipped (written as
 /// triangles), one triangle of quad 2 dropped and filled, a vertex copy on quad 3.

@@ -15,7 +15,7 @@ use super::{
     Polygons, WriteError, Written,
 };
 use crate::formats::obj::{read_full, Detail, State};
-use crate::formats::{contain, ReadContext};
+use crate::formats::{contain, text, ReadContext};
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
@@ -265,7 +265,7 @@ fn copy_materials(
             write_atomic(&to.join(&rel), &bytes)?;
             written.push(to.join(&rel));
             let mtl_folder = rel.parent().map(Path::to_path_buf).unwrap_or_default();
-            for texture in textures(&String::from_utf8_lossy(&bytes)) {
+            for texture in textures(&bytes) {
                 let Some(t) = inside(&texture) else { continue };
                 let rel = mtl_folder.join(t);
                 // Only inside the source's folder, after `..` in the library's own folder.
@@ -305,8 +305,12 @@ fn inside(name: &str) -> Option<PathBuf> {
 }
 
 /// The texture file names of an MTL (`map_*`, `bump`, `disp`, `decal`, `refl`), option flags
-/// skipped: the last word is the file name (names with spaces are rare).
-fn textures(mtl: &str) -> Vec<String> {
+/// skipped: the last word is the file name (names with spaces are rare). Lines end as the OBJ
+/// reader ends them (a bare CR too, [`text::lf_line_ends`]).
+fn textures(mtl: &[u8]) -> Vec<String> {
+    let mtl = text::lf_line_ends(mtl);
+    let mtl = String::from_utf8_lossy(&mtl);
+    let mut seen = HashSet::new();
     let mut out = Vec::new();
     for line in mtl.lines() {
         let mut words = line.split_ascii_whitespace();
@@ -316,7 +320,7 @@ fn textures(mtl: &str) -> Vec<String> {
             || matches!(key.as_str(), "bump" | "disp" | "decal" | "refl" | "norm")
         {
             if let Some(last) = words.last() {
-                if !out.iter().any(|t| t == last) {
+                if seen.insert(last) {
                     out.push(last.to_string());
                 }
             }
