@@ -207,6 +207,17 @@ fn lines_with<'a>(text: &'a str, keyword: &str) -> Vec<&'a str> {
         .collect()
 }
 
+/// Writes `obj` as `m.obj` in `tree` (the scanned tree), reads it (one triangle) and writes its
+/// copy unchanged to `out/m.obj`; the files written.
+fn copy_obj_unchanged(tree: &Path, obj: &str, out: &Path) -> Vec<PathBuf> {
+    let source = tree.join("m.obj");
+    std::fs::write(&source, obj).unwrap();
+    let mesh = read(&source, Format::Obj, &cx(tree)).unwrap().remove(0);
+    assert_eq!(mesh.triangles.len(), 1);
+    let plans = [Some(identity(&mesh))];
+    write_repaired(&source, Format::Obj, &plans, &out.join("m.obj"), &cx(tree)).unwrap()
+}
+
 /// A copy's material libraries and textures are read as the reader reads them: a library or
 /// texture that is a link to a file outside the scanned tree is neither read nor copied (the
 /// reader refuses it too), and a library named on many lines is copied once.
@@ -228,18 +239,7 @@ fn obj_copies_no_linked_file_from_outside_the_tree_and_each_library_once() {
     std::fs::write(tree.join("in.png"), "inside").unwrap();
     let mut obj = "mtllib linked.mtl\nmtllib real.mtl\n".repeat(1000);
     obj += "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n";
-    let source = tree.join("m.obj");
-    std::fs::write(&source, obj).unwrap();
-    let mesh = read(&source, Format::Obj, &cx(&tree)).unwrap().remove(0);
-    let copy = out.join("m.obj");
-    let files = write_repaired(
-        &source,
-        Format::Obj,
-        &[Some(identity(&mesh))],
-        &copy,
-        &cx(&tree),
-    )
-    .unwrap();
+    let files = copy_obj_unchanged(&tree, &obj, &out);
     let names: Vec<String> = files
         .iter()
         .map(|f| f.strip_prefix(&out).unwrap().to_string_lossy().into_owned())
@@ -261,20 +261,11 @@ fn obj_copy_of_a_bare_cr_file_keeps_its_library_and_texture() {
     std::fs::write(src.join("m.mtl"), "newmtl m\rKd 1 1 1\rmap_Kd tex/m.png\r").unwrap();
     std::fs::write(src.join("tex/m.png"), "texture").unwrap();
     let obj = "mtllib m.mtl\rv 0 0 0\rv 1 0 0\rv 0 1 0\rusemtl m\rf 1 2 3\r";
-    let source = src.join("m.obj");
-    std::fs::write(&source, obj).unwrap();
-    let mesh = read(&source, Format::Obj, &cx(&src)).unwrap().remove(0);
-    assert_eq!(mesh.triangles.len(), 1);
-    let copy = out.join("m.obj");
-    let files = write_repaired(
-        &source,
-        Format::Obj,
-        &[Some(identity(&mesh))],
-        &copy,
-        &cx(&src),
-    )
-    .unwrap();
-    assert_eq!(files, [copy, out.join("m.mtl"), out.join("tex/m.png")]);
+    let files = copy_obj_unchanged(&src, obj, &out);
+    assert_eq!(
+        files,
+        [out.join("m.obj"), out.join("m.mtl"), out.join("tex/m.png")]
+    );
 }
 
 /// A textured OBJ cube in two groups and materials, with an unreferenced vertex; quad 0 flipped
