@@ -5,14 +5,16 @@
 //! `Mesh::positions` in file order, as stored (NaN kept), and `f` lines become triangles indexing
 //! them (1-based, negative = relative, polygons split by [`crate::geometry::polygon`]). One file is
 //! one mesh whatever its `o`/`g`/`usemtl`. `vt`/`vn`/`o`/`g`/`s`/`usemtl` play no part in the
-//! topology; a repairing scan keeps them (with each face's polygon and corners) for the writer of the
-//! repaired copy ([`read_retaining`]); points and lines are counted into notes. `mtllib` files are read with tobj under
-//! `catch_unwind` (it panics on short colour lines), only when they are regular files inside the
-//! scanned tree (after symbolic links too, [`super::contain`]) and within `limits.max_file_bytes`;
-//! each distinct library is read once however many lines name it, and any MTL trouble is a note
-//! (the first [`MTL_NOTES`], then one for the rest), never an error. Binary content is refused ([`super::text`]). The
-//! common `v x y z` and `f a b c` lines are read in one pass over their bytes; anything else in
-//! them sends the line to the word-by-word reader, which owns every message.
+//! topology; a repairing scan keeps them (with each face's polygon and corners) for the writer of
+//! the repaired copy ([`read_retaining`]); points and lines are counted into notes.
+//!
+//! `mtllib` files are read with tobj under `catch_unwind` (it panics on short colour lines), only
+//! when they are regular files inside the scanned tree (after symbolic links too,
+//! [`super::contain`]) and within `limits.max_file_bytes`; each distinct library is read once
+//! however many lines name it, and any MTL trouble is a note (the first [`MTL_NOTES`], then one
+//! for the rest), never an error. Binary content is refused ([`super::text`]). The common
+//! `v x y z` and `f a b c` lines are read in one pass over their bytes; anything else in them sends
+//! the line to the word-by-word reader, which owns every message.
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashSet};
