@@ -197,8 +197,7 @@ fn say_not_repairable(
         let Some((mut parts, before)) = left else {
             continue;
         };
-        let copy = after.get(i).cloned().flatten();
-        let meeting = copy.as_ref().unwrap_or(&before);
+        let meeting = after.get(i).and_then(Option::as_ref).unwrap_or(&before);
         if !meeting.is_empty() {
             let split = if before.is_empty() {
                 "the split left "

@@ -138,9 +138,18 @@ impl Files {
         Ok(Files { of_buffer, data })
     }
 
-    /// The bytes read from all the files.
-    pub fn bytes(&self) -> u64 {
-        self.data.iter().map(|d| d.len() as u64).sum()
+    /// The bytes behind `loaded` (the buffers by index, as [`load`] gave them): each file read
+    /// once, however many buffers share it, and the other buffers (data URIs, the GLB chunk) as
+    /// loaded.
+    pub fn bytes_behind(&self, loaded: &[Option<Cow<'_, [u8]>>]) -> u64 {
+        let files: u64 = self.data.iter().map(|d| d.len() as u64).sum();
+        let others: u64 = loaded
+            .iter()
+            .enumerate()
+            .filter(|&(index, _)| !self.holds(index))
+            .filter_map(|(_, b)| b.as_ref().map(|b| b.len() as u64))
+            .sum();
+        files.saturating_add(others)
     }
 
     /// Whether buffer `index` reads one of these files.

@@ -148,7 +148,6 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
         location.as_ref(),
         &cx.limits,
     )?;
-    let mut buffer_bytes = files.bytes();
     for (index, buffer) in root.buffers.iter().enumerate() {
         let load = || buffers::load(index, buffer, container.bin, container.is_glb, &files);
         if needed.contains(&index) {
@@ -166,14 +165,11 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
             }
             loaded.push(optional.contains(&index).then(load).and_then(Result::ok));
         }
-        if !files.holds(index) {
-            buffer_bytes += loaded[index].as_ref().map_or(0, |b| b.len() as u64);
-        }
     }
     let data = Data {
         root: &root,
+        buffer_bytes: files.bytes_behind(&loaded),
         buffers: loaded,
-        buffer_bytes,
         limits: &cx.limits,
     };
     let instances = instance_signs(&data, &mut notes);

@@ -121,20 +121,21 @@ fn write_unguarded(
         &cx.limits,
     )?;
     let mut loaded: Vec<Option<Cow<'_, [u8]>>> = vec![None; model.buffers.len()];
-    let mut buffer_bytes = files.bytes();
     for &b in &needed {
         if let Some(buffer) = model.buffers.get(b) {
-            let data = buffers::load(b, buffer, container.bin, container.is_glb, &files)?;
-            if !files.holds(b) {
-                buffer_bytes += data.len() as u64;
-            }
-            loaded[b] = Some(data);
+            loaded[b] = Some(buffers::load(
+                b,
+                buffer,
+                container.bin,
+                container.is_glb,
+                &files,
+            )?);
         }
     }
     let data = Data {
         root: &model,
+        buffer_bytes: files.bytes_behind(&loaded),
         buffers: loaded,
-        buffer_bytes,
         limits: &cx.limits,
     };
 
