@@ -386,8 +386,9 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             _ => {
                 body.skip(def)?;
                 if def.count > 0 {
+                    let entries = if def.count == 1 { "entry" } else { "entries" };
                     mesh.notes.push(format!(
-                        "PLY element `{}` ({} entries) skipped",
+                        "PLY element `{}` ({} {entries}) skipped",
                         def.name, def.count
                     ));
                 }
@@ -1120,6 +1121,25 @@ mod tests {
 
     fn cx() -> ReadContext {
         ReadContext::for_tests()
+    }
+
+    /// An element the reader does not use is named in a note with its count, in the singular
+    /// for one entry.
+    #[test]
+    fn skipped_elements_are_noted_with_their_count() {
+        for (count, said) in [(1, "(1 entry)"), (2, "(2 entries)")] {
+            let text = format!(
+                "ply\nformat ascii 1.0\nelement material {count}\nproperty uchar r\n\
+                 element vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                 element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+                 {}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+                "7\n".repeat(count)
+            );
+            let mesh = parse(text.as_bytes(), &cx()).expect("a triangle");
+            assert_eq!(mesh.triangles.len(), 1);
+            let note = format!("PLY element `material` {said} skipped");
+            assert!(mesh.notes.contains(&note), "{:?}", mesh.notes);
+        }
     }
 
     /// Strip 0 1 2 3 | 4 5 6 6 7 (-1 restarts): triangles 012, 213 (second window reversed), 456;
