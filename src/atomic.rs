@@ -20,12 +20,22 @@ pub struct AtomicFile {
     /// `None`: the target is a device, a pipe or a socket, written in place.
     temporary: Option<PathBuf>,
     path: PathBuf,
+    /// [`AtomicFile::prepare`] flushed everything to the disk.
+    synced: bool,
 }
 
 impl AtomicFile {
-    /// Starts writing `path` (its folder must exist).
+    /// Starts writing `path` (its folder must exist; a folder at `path` is refused now, not when
+    /// the finished file would be renamed over it).
     pub fn create(path: &Path) -> io::Result<AtomicFile> {
-        let special = std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+        let meta = std::fs::metadata(path);
+        if meta.as_ref().is_ok_and(|m| m.is_dir()) {
+            return Err(io::Error::new(
+                io::ErrorKind::IsADirectory,
+                "it is a folder, not a file",
+            ));
+        }
+        let special = meta.is_ok_and(|m| !m.is_file());
         let (file, temporary) = if special {
             (std::fs::OpenOptions::new().write(true).open(path)?, None)
         } else {
@@ -36,18 +46,36 @@ impl AtomicFile {
             writer: Some(BufWriter::new(file)),
             temporary,
             path: path.to_owned(),
+            synced: false,
         })
     }
 
-    /// Flushes the data to the disk and renames the temporary file over the target, so even a
-    /// power cut leaves the old file or the whole new one (a device or a pipe: flushes into it).
+    /// Flushes the data to the disk, so that [`AtomicFile::commit`] has only the rename left:
+    /// files put in place together ([`crate::report::Output::prepare`]) are all written before
+    /// any of them replaces its target.
+    pub fn prepare(&mut self) -> io::Result<()> {
+        let in_place = self.temporary.is_none();
+        let writer = self.writer()?;
+        writer.flush()?;
+        if !in_place {
+            writer.get_ref().sync_all()?;
+        }
+        self.synced = true;
+        Ok(())
+    }
+
+    /// Flushes the data to the disk (unless [`AtomicFile::prepare`] did) and renames the
+    /// temporary file over the target, so even a power cut leaves the old file or the whole new
+    /// one (a device or a pipe: flushes into it).
     pub fn commit(mut self) -> io::Result<()> {
         let writer = self.writer.take().expect("commit is called once");
         let file = writer.into_inner().map_err(|e| e.into_error())?;
         let Some(temporary) = &self.temporary else {
             return Ok(());
         };
-        file.sync_all()?;
+        if !self.synced {
+            file.sync_all()?;
+        }
         drop(file);
         std::fs::rename(temporary, &self.path)
         // On error, `drop` removes the temporary file.
@@ -136,6 +164,35 @@ mod tests {
         file.commit().unwrap();
         assert!(std::fs::metadata(&pipe).unwrap().file_type().is_fifo());
         assert_eq!(reader.join().unwrap().unwrap(), b"path,faces\n");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// A folder named as the target is refused when the file is started, before a scan's work,
+    /// and stays as it was.
+    #[test]
+    fn a_folder_is_refused_at_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let folder = dir.path().join("reports");
+        std::fs::create_dir(&folder).unwrap();
+        let e = AtomicFile::create(&folder)
+            .err()
+            .expect("a folder is refused");
+        assert_eq!(e.kind(), io::ErrorKind::IsADirectory);
+        assert!(folder.is_dir());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// Prepared, the file is on the disk under its temporary name and the target unchanged; the
+    /// commit then only renames.
+    #[test]
+    fn prepared_files_replace_the_target_only_when_committed() {
+        let (dir, path, mut file) = over_old(b"new");
+        file.prepare().unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        let temporary = file.temporary.clone().unwrap();
+        assert_eq!(std::fs::read_to_string(&temporary).unwrap(), "new");
+        file.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 

@@ -41,6 +41,11 @@ impl JsonReport {
     pub fn finish(self) -> io::Result<()> {
         self.out.finish()
     }
+
+    /// The output, for the caller to put in place.
+    pub fn into_output(self) -> Output {
+        self.out
+    }
 }
 
 /// The JSON object of one mesh (see the module docs).

@@ -24,16 +24,16 @@ use crate::rules::{Severity, Status};
 
 /// A JUnit report being gathered; [`JunitReport::finish`] writes it (a file atomically).
 pub struct JunitReport {
-    target: Target,
+    out: Output,
     suite: TestSuite,
 }
 
 impl JunitReport {
-    /// Checks that the target can be created now, so a bad path fails before the scan.
+    /// Opens the target now, so a bad path fails before the scan; the report is written into it
+    /// when finished.
     pub fn create(target: &Target) -> io::Result<JunitReport> {
-        drop(Output::create(target)?);
         Ok(JunitReport {
-            target: target.clone(),
+            out: Output::create(target)?,
             suite: TestSuite::new("meshvet"),
         })
     }
@@ -43,15 +43,19 @@ impl JunitReport {
         Ok(())
     }
 
-    /// Writes the report; `time` is the scan's wall time.
-    pub fn finish(mut self, time: Duration) -> io::Result<()> {
+    /// Writes the report and puts it in place; `time` is the scan's wall time.
+    pub fn finish(self, time: Duration) -> io::Result<()> {
+        self.into_output(time)?.finish()
+    }
+
+    /// Writes the report into its output, for the caller to put in place.
+    pub fn into_output(mut self, time: Duration) -> io::Result<Output> {
         self.suite.set_time(time);
         let mut report = Report::new("meshvet");
         report.set_time(time);
         report.add_test_suite(self.suite);
-        let mut out = Output::create(&self.target)?;
-        report.serialize(&mut out).map_err(io::Error::other)?;
-        out.finish()
+        report.serialize(&mut self.out).map_err(io::Error::other)?;
+        Ok(self.out)
     }
 }
 

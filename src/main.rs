@@ -222,7 +222,9 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         |p| p.display().to_string(),
     );
     let filter = walk::Filter::new(&settings.include, &settings.exclude).map_err(|e| {
-        let from = config_file.map_or_else(|| "the config".to_owned(), |p| p.display().to_string());
+        let from = config_file
+            .as_ref()
+            .map_or_else(|| "the config".to_owned(), |p| p.display().to_string());
         format!("bad include/exclude in {from}: {e}")
     })?;
     for path in &args.paths {
@@ -271,7 +273,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         }
     }
     let mut sources = walk::walk_within(&args.paths, &filter, args.root.as_deref());
-    outputs::refuse_reports_over_sources(args, &sources)?;
+    outputs::refuse_reports_over_inputs(args, &sources, config_file.as_deref())?;
     if let Some(dir) = &args.repair_dir {
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create the repair folder {}: {e}", dir.display()))?;
@@ -353,10 +355,10 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
         (stats, cache.finish().err())
     });
     written.map_err(|e| e.to_string())?;
-    reports.finish(started.elapsed())?;
-    if let (Some(page), Some(path)) = (&mut html, &args.html) {
+    let mut page = None;
+    if let Some(report) = &mut html {
         if let (Some(b), Some(name)) = (&baseline, &args.baseline) {
-            page.set_baseline(html::Baseline {
+            report.set_baseline(html::Baseline {
                 name: name.display().to_string(),
                 worse: b.worse.clone(),
                 better: b.better.clone(),
@@ -370,10 +372,9 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
             seconds: started.elapsed().as_secs_f64(),
             files: sources.len(),
         };
-        let target = cli::target(path);
-        page.write(&target, &meta)
-            .map_err(|e| outputs::cannot_write(&target, &e))?;
+        page = Some(report.render(&meta));
     }
+    reports.finish(started.elapsed(), page)?;
 
     // The summary goes to standard output unless a report does.
     let mut out: Box<dyn Write> = if reports_on_stdout {

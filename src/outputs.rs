@@ -2,13 +2,15 @@
 //! at once, fed every outcome in report order and put in place together at the end; and the
 //! one-line-per-finding output of `--format lines` (pre-commit hooks).
 
-use std::io;
+use std::collections::HashSet;
+use std::io::{self, Read, Write};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use meshvet::json::JsonReport;
 use meshvet::junit::JunitReport;
 use meshvet::report::Outcome;
-use meshvet::report::{CsvReport, Target};
+use meshvet::report::{CsvReport, Output, Target};
 use meshvet::rules::{Severity, Status};
 
 use crate::cli::{self, Scan};
@@ -19,6 +21,8 @@ pub struct Reports {
     csv: Option<(Target, CsvReport)>,
     json: Option<(Target, JsonReport)>,
     junit: Option<(Target, JunitReport)>,
+    /// The HTML page's output, opened with the others; the page is written at the end.
+    html: Option<(Target, Output)>,
 }
 
 impl Reports {
@@ -44,8 +48,8 @@ impl Reports {
                  too: give {flag} a file"
             ));
         }
-        let [csv, json, junit] =
-            [&args.csv, &args.json, &args.junit].map(|p| p.as_deref().map(cli::target));
+        let [csv, json, junit, html] =
+            [&args.csv, &args.json, &args.junit, &args.html].map(|p| p.as_deref().map(cli::target));
         fn open<R>(
             target: Option<Target>,
             create: impl Fn(&Target) -> io::Result<R>,
@@ -62,6 +66,7 @@ impl Reports {
             csv: open(csv, CsvReport::create)?,
             json: open(json, JsonReport::create)?,
             junit: open(junit, JunitReport::create)?,
+            html: open(html, Output::create)?,
         })
     }
 
@@ -91,33 +96,63 @@ impl Reports {
         Ok(())
     }
 
-    /// Puts every report in place; `time` is the scan's wall time (for JUnit).
-    pub fn finish(self, time: Duration) -> Result<(), String> {
+    /// Puts every report in place together: each is written out and flushed to the disk first,
+    /// and only when all of them are does any replace its target (a full disk or a failing write
+    /// leaves every earlier report as it was). `time` is the scan's wall time (for JUnit); `page`
+    /// the HTML page, when `--html` asked for one.
+    pub fn finish(self, time: Duration, page: Option<String>) -> Result<(), String> {
+        let mut ready: Vec<(Target, io::Result<Output>)> = Vec::new();
         if let Some((t, r)) = self.csv {
-            r.finish().map_err(|e| cannot_write(&t, &e))?;
+            ready.push((t, r.into_output()));
         }
         if let Some((t, r)) = self.json {
-            r.finish().map_err(|e| cannot_write(&t, &e))?;
+            ready.push((t, Ok(r.into_output())));
         }
         if let Some((t, r)) = self.junit {
-            r.finish(time).map_err(|e| cannot_write(&t, &e))?;
+            ready.push((t, r.into_output(time)));
+        }
+        if let Some((t, mut out)) = self.html {
+            let written = out.write_all(page.unwrap_or_default().as_bytes());
+            ready.push((t, written.map(|()| out)));
+        }
+        let mut outputs = Vec::with_capacity(ready.len());
+        for (t, out) in ready {
+            let out = out.and_then(|mut out| out.prepare().map(|()| out));
+            outputs.push((out.map_err(|e| cannot_write(&t, &e))?, t));
+        }
+        for (out, t) in outputs {
+            out.finish().map_err(|e| cannot_write(&t, &e))?;
         }
         Ok(())
     }
 }
 
 /// Refuses, before anything is written, a report that would be put in place of a file the scan
-/// reads (`--csv models/part.obj` would replace the mesh with the CSV: sources are never
-/// written) or in place of another report. Each report is compared by its real path with the
-/// sources of the same file name, so a scan of a million files costs nothing more.
-pub fn refuse_reports_over_sources(args: &Scan, sources: &[Source]) -> Result<(), String> {
+/// reads, or in place of another report. Sources are never written: `--csv models/part.obj`
+/// would replace the mesh with the CSV, `--csv buffers/part.bin` the buffer a glTF reads, and
+/// `--junit meshvet.toml` the config. A report may replace
+/// - a file outside every scanned tree (the scan reads none there) but the config in use
+///   (`config`) and the cache's own files;
+/// - inside a scanned tree, only a file that is a meshvet report already (or empty), since any
+///   other file there may be a buffer, material library or texture a model names.
+///
+/// Each report is compared by its real path with the sources of the same file name, so a scan
+/// of a million files costs nothing more; the trees are looked at only for a report that exists.
+pub fn refuse_reports_over_inputs(
+    args: &Scan,
+    sources: &[Source],
+    config: Option<&Path>,
+) -> Result<(), String> {
     let flags = [
         ("--csv", &args.csv),
         ("--json", &args.json),
         ("--junit", &args.junit),
         ("--html", &args.html),
     ];
-    let mut seen: Vec<(&str, std::path::PathBuf)> = Vec::new();
+    let config = config.and_then(|c| c.canonicalize().ok());
+    let cache = args.cache.as_deref().and_then(|c| c.canonicalize().ok());
+    let mut trees: Option<Vec<PathBuf>> = None;
+    let mut seen: Vec<(&str, PathBuf)> = Vec::new();
     for (flag, path) in flags {
         let Some(path) = path.as_deref().filter(|p| cli::target(p) != Target::Stdout) else {
             continue;
@@ -143,17 +178,73 @@ pub fn refuse_reports_over_sources(args: &Scan, sources: &[Source]) -> Result<()
                 source.display
             ));
         }
+        if config.as_ref() == Some(&real) {
+            return Err(format!(
+                "{flag} {} is the config this scan reads: the report would replace it - write \
+                 the report under another name",
+                path.display()
+            ));
+        }
+        if cache.as_deref().is_some_and(|c| real.parent() == Some(c)) {
+            return Err(format!(
+                "{flag} {} is in the cache folder, which holds meshvet's own files - write the \
+                 report elsewhere",
+                path.display()
+            ));
+        }
+        if real.is_file() {
+            let trees = trees.get_or_insert_with(|| scanned_trees(sources));
+            if trees.iter().any(|t| real.starts_with(t)) && !is_report(&real) {
+                return Err(format!(
+                    "{flag} {} is a file inside the scanned tree that is not a meshvet report (a \
+                     model may read it as a buffer, material or texture): the report would \
+                     replace it - write the report elsewhere, or remove the file first if it is \
+                     not needed",
+                    path.display()
+                ));
+            }
+        }
         seen.push((flag, real));
     }
     Ok(())
 }
 
+/// The real paths of the trees the sources' models may read files from (each source's
+/// [`Source::root`]), each once.
+fn scanned_trees(sources: &[Source]) -> Vec<PathBuf> {
+    let roots: HashSet<&Path> = sources.iter().map(|s| &*s.root).collect();
+    let mut trees: Vec<PathBuf> = roots
+        .into_iter()
+        .filter_map(|r| r.canonicalize().ok())
+        .collect();
+    trees.sort();
+    trees.dedup();
+    trees
+}
+
+/// Whether the file at `path` is empty or begins as one of meshvet's reports does (CSV, JSON
+/// Lines, JUnit, HTML page): a file a report may replace inside a scanned tree.
+fn is_report(path: &Path) -> bool {
+    let mut head = Vec::new();
+    let read = std::fs::File::open(path).and_then(|f| f.take(4096).read_to_end(&mut head));
+    if read.is_err() {
+        return false;
+    }
+    let text = head.strip_prefix("\u{feff}".as_bytes()).unwrap_or(&head);
+    let holds = |needle: &[u8]| text.windows(needle.len()).any(|w| w == needle);
+    text.is_empty()
+        || text.starts_with(b"path,")
+        || text.starts_with(b"{\"path\":")
+        || (text.starts_with(b"<?xml") && holds(b"<testsuites name=\"meshvet\""))
+        || (text.starts_with(b"<!DOCTYPE html>") && holds(b"<title>meshvet QA report"))
+}
+
 /// The real path of `path`, or of its folder joined with its name when it does not exist yet;
 /// `None` when neither can be told (the report's own error then comes when it is opened).
-fn real_path(path: &std::path::Path) -> Option<std::path::PathBuf> {
+fn real_path(path: &Path) -> Option<PathBuf> {
     path.canonicalize().ok().or_else(|| {
         let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
-        let folder = folder.unwrap_or(std::path::Path::new("."));
+        let folder = folder.unwrap_or(Path::new("."));
         Some(folder.canonicalize().ok()?.join(path.file_name()?))
     })
 }
@@ -161,6 +252,10 @@ fn real_path(path: &std::path::Path) -> Option<std::path::PathBuf> {
 pub fn cannot_write(target: &Target, e: &io::Error) -> String {
     match target {
         Target::Stdout => format!("cannot write the report to standard output: {e}"),
+        Target::File(p) if e.kind() == io::ErrorKind::IsADirectory => format!(
+            "cannot write the report {}: {e} - name a file for it",
+            p.display()
+        ),
         Target::File(p) => format!(
             "cannot write the report {}: {e} - check that its folder exists and is writable",
             p.display()

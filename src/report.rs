@@ -428,6 +428,15 @@ impl Output {
         })
     }
 
+    /// Flushes everything written (for a file, to the disk), so that [`Output::finish`] has only
+    /// the rename left.
+    pub fn prepare(&mut self) -> io::Result<()> {
+        match self {
+            Output::Stdout(out) => out.flush(),
+            Output::File(file) => file.prepare(),
+        }
+    }
+
     /// Flushes and, for a file, renames it into place.
     pub fn finish(self) -> io::Result<()> {
         match self {
@@ -486,9 +495,14 @@ impl CsvReport {
     }
 
     /// Flushes the rows and, for a file, renames the temporary file over the target.
-    pub fn finish(mut self) -> io::Result<()> {
-        let writer = self.writer.take().expect("finish is called once");
-        writer.into_inner().map_err(|e| e.into_error())?.finish()
+    pub fn finish(self) -> io::Result<()> {
+        self.into_output()?.finish()
+    }
+
+    /// Flushes the rows into the output, for the caller to put in place.
+    pub fn into_output(mut self) -> io::Result<Output> {
+        let writer = self.writer.take().expect("the output is taken once");
+        writer.into_inner().map_err(|e| e.into_error())
     }
 }
 

@@ -453,6 +453,91 @@ fn a_report_never_replaces_a_scanned_file() {
     assert_eq!(rows(&read("r.csv")).len(), 2);
 }
 
+/// Nor a file a model reads beside it (its material library, a texture) or the config in use:
+/// inside a scanned tree a report may replace only an earlier meshvet report or an empty file,
+/// and nowhere the config. Each refusal exits 2 before anything is written.
+#[test]
+fn a_report_never_replaces_a_file_a_model_or_the_scan_reads() {
+    let tree = Tree::new(&[
+        ("m/a.obj", &format!("mtllib a.mtl\nusemtl red\n{TETRA}")),
+        ("m/a.mtl", "newmtl red\nKd 1 0 0\nmap_Kd red.png\n"),
+        ("m/red.png", "not really a picture"),
+        ("m/empty.csv", ""),
+        ("meshvet.toml", "[rules]\nhole = \"off\"\n"),
+        ("other.toml", "[rules]\nhole = \"off\"\n"),
+    ]);
+    let read = |name: &str| std::fs::read_to_string(tree.path().join(name)).unwrap();
+    for args in [
+        &["--csv", "m/a.mtl"][..],
+        &["--json", "m/red.png"],
+        &["--junit", "meshvet.toml"],
+        &["--html", "other.toml", "--config", "other.toml"],
+    ] {
+        let run = meshvet(tree.path(), &[&["scan", "m", "-q"], args].concat());
+        assert_eq!(run.code, 2, "{args:?}: {}", run.stderr);
+        assert!(
+            run.stderr.contains(args[0]) && run.stderr.contains("would replace it"),
+            "{args:?}: {}",
+            run.stderr
+        );
+    }
+    assert!(read("m/a.mtl").starts_with("newmtl red"));
+    assert_eq!(read("m/red.png"), "not really a picture");
+    assert_eq!(read("meshvet.toml"), read("other.toml"));
+
+    // Reports of an earlier run, and an empty file, may be replaced, as each kind of report.
+    let reports = [
+        "--csv",
+        "m/r.csv",
+        "--json",
+        "m/r.jsonl",
+        "--junit",
+        "m/r.xml",
+        "--html",
+        "m/r.html",
+    ];
+    for round in 0..2 {
+        let run = meshvet(tree.path(), &[&["scan", "m", "-q"], &reports[..]].concat());
+        assert_eq!(run.code, 0, "round {round}: {}", run.stderr);
+    }
+    let run = meshvet(tree.path(), &["scan", "m", "-q", "--csv", "m/empty.csv"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert_eq!(rows(&read("m/empty.csv")).len(), 1);
+}
+
+/// A report path that cannot be written (a missing folder, a folder itself) is refused before
+/// the scan, and no report of the run replaces its target: the reports are put in place together
+/// once all of them are written. `/dev/full` takes the bytes in place and fails them as a full
+/// disk would: the CSV beside it stays the earlier one.
+#[test]
+fn reports_are_put_in_place_together_or_not_at_all() {
+    let tree = Tree::new(&[("m/a.obj", TETRA), ("r.csv", "path,earlier\n")]);
+    std::fs::create_dir(tree.path().join("folder")).unwrap();
+    let read = |name: &str| std::fs::read_to_string(tree.path().join(name)).unwrap();
+    let mut cases = vec![
+        (["--html", "missing/r.html"], "missing/r.html"),
+        (["--json", "folder"], "a folder"),
+    ];
+    if Path::new("/dev/full").exists() {
+        cases.push((["--json", "/dev/full"], "/dev/full"));
+    }
+    for (args, said) in cases {
+        let run = meshvet(
+            tree.path(),
+            &[&["scan", "m", "-q", "--csv", "r.csv"], &args[..]].concat(),
+        );
+        assert_eq!(run.code, 2, "{args:?}: {}", run.stderr);
+        assert!(run.stderr.contains(said), "{args:?}: {}", run.stderr);
+        assert_eq!(read("r.csv"), "path,earlier\n", "{args:?}");
+    }
+    assert!(tree.path().join("folder").is_dir());
+    let left: Vec<_> = std::fs::read_dir(tree.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left.len(), 3, "no temporary file left: {left:?}");
+}
+
 #[test]
 fn bad_commands_exit_2() {
     let tree = Tree::new(&[("a.obj", TETRA)]);
