@@ -24,7 +24,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 pub use crate::baseline::Change;
 use crate::report::Outcome;
-use crate::report::{Output, Row, Target, COLUMNS};
+use crate::report::{Output, Row, Target, COLUMNS, TEXT_COLUMNS};
 use crate::rules::{Rule, Severity, Status};
 use crate::topology::{Role, Shell};
 
@@ -428,8 +428,8 @@ impl HtmlReport {
             }
             out.push('[');
             let record = e.row.cells();
-            for cell in record.iter() {
-                if is_json_number(cell) {
+            for (cell, text) in record.iter().zip(TEXT_COLUMNS) {
+                if !text && is_json_number(cell) {
                     out.push_str(cell);
                 } else {
                     json_string(out, cell);
@@ -635,20 +635,40 @@ fn json_string(out: &mut String, text: &str) {
     out.push('"');
 }
 
-/// Whether a CSV cell can be written as a bare JSON number.
+/// Whether a CSV cell is a JSON number as it stands (RFC 8259: `-`, then `0` or digits not
+/// starting with `0`, then `.` and digits, then `e` or `E`, a sign and digits, each part after the
+/// first optional), so that it can be written bare.
 fn is_json_number(cell: &str) -> bool {
-    let bytes = cell.as_bytes();
-    let Some(&first) = bytes.first() else {
+    fn digits(b: &[u8]) -> usize {
+        b.iter().take_while(|c| c.is_ascii_digit()).count()
+    }
+    let mut b = cell.as_bytes();
+    b = b.strip_prefix(b"-").unwrap_or(b);
+    let whole = digits(b);
+    if whole == 0 || (whole > 1 && b[0] == b'0') {
         return false;
-    };
-    (first.is_ascii_digit() || first == b'-')
-        && bytes.last().is_some_and(u8::is_ascii_digit)
-        && !cell.contains("..")
-        && bytes
-            .iter()
-            .all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'.' | b'e'))
-        && !(bytes.len() > 1 && first == b'0' && bytes[1].is_ascii_digit())
-        && cell.parse::<f64>().is_ok_and(f64::is_finite)
+    }
+    b = &b[whole..];
+    if let Some(rest) = b.strip_prefix(b".") {
+        let fraction = digits(rest);
+        if fraction == 0 {
+            return false;
+        }
+        b = &rest[fraction..];
+    }
+    if let Some(rest) = b.strip_prefix(b"e").or_else(|| b.strip_prefix(b"E")) {
+        let rest = rest
+            .strip_prefix(b"+")
+            .or_else(|| rest.strip_prefix(b"-"))
+            .unwrap_or(rest);
+        let exponent = digits(rest);
+        if exponent == 0 {
+            return false;
+        }
+        b = &rest[exponent..];
+    }
+    // Past `f64` (1e999), JavaScript would read it as Infinity.
+    b.is_empty() && cell.parse::<f64>().is_ok_and(f64::is_finite)
 }
 
 #[cfg(test)]
@@ -793,12 +813,42 @@ mod tests {
 
     #[test]
     fn numbers_are_bare_and_other_cells_strings() {
-        for n in ["0", "12", "-3", "2.5", "1e-7", "-0.5"] {
+        for n in ["0", "12", "-3", "2.5", "1e-7", "-0.5", "1E+5", "-0", "0.01"] {
             assert!(is_json_number(n), "{n}");
         }
-        for s in ["", "true", "inf", "NaN", "01", "1.", "-", "1e"] {
+        let not = [
+            "", "true", "inf", "NaN", "01", "1.", "-", "1e", "-01", "-.5", "1.e5", ".5", "+1",
+            "1e+", "0x10", "1 ", "1e999",
+        ];
+        for s in not {
             assert!(!is_json_number(s), "{s}");
         }
+    }
+
+    /// Text cells stay strings whatever they look like: glTF meshes named `-01`, `-.5`, `1.e5`
+    /// (not JSON numbers: written bare they broke the whole page's data) and `1.50` (a JSON
+    /// number, read as 1.5), and a path `12`. The page's data block parses as JSON and gives the
+    /// names back as written.
+    #[test]
+    fn names_that_look_like_numbers_stay_names() {
+        let mut r = HtmlReport::new();
+        for name in ["-01", "-.5", "1.e5", "1.50"] {
+            let mut o = outcome("12", Status::Pass, &[]);
+            o.row.mesh = name.to_owned();
+            r.add(o);
+        }
+        let mut data = String::new();
+        r.write_data(&mut data);
+        let json = data
+            .split_once('{')
+            .map(|(_, rest)| format!("{{{rest}"))
+            .unwrap();
+        let json = json.trim_end().trim_end_matches(';');
+        let value: serde_json::Value = serde_json::from_str(json).expect("the data is JSON");
+        let rows = value["rows"].as_array().unwrap();
+        let names: Vec<&str> = rows.iter().map(|r| r[1].as_str().unwrap()).collect();
+        assert_eq!(names, ["-01", "-.5", "1.e5", "1.50"]);
+        assert!(rows.iter().all(|r| r[0] == "12" && r[7] == 12));
     }
 
     #[test]

@@ -35,6 +35,10 @@ macro_rules! columns {
         /// The column names in order (the header the writer emits).
         pub const COLUMNS: &[&str] = &[$(stringify!($name)),*];
 
+        /// Per column, whether its cells are free text ([`Cell::TEXT`]): a mesh named `1.50`
+        /// stays a name wherever cells are typed by what they look like.
+        pub const TEXT_COLUMNS: &[bool] = &[$(<$ty as Cell>::TEXT),*];
+
         impl Row {
             /// The cells in column order, as the CSV writes them.
             pub fn cells(&self) -> Vec<String> {
@@ -127,6 +131,9 @@ columns! {
 /// How a column's type is written in a CSV cell, read back from one and typed in JSON. Undefined
 /// values (`None`) are empty cells and JSON `null`.
 pub trait Cell: Sized {
+    /// Whether the cell is free text (a path, a name, a message), never a number, whatever it
+    /// looks like.
+    const TEXT: bool = false;
     /// The cell's text.
     fn cell(&self) -> String;
     /// The value a cell's text stands for; `None` when it does not read as this type.
@@ -135,6 +142,8 @@ pub trait Cell: Sized {
 }
 
 impl Cell for String {
+    const TEXT: bool = true;
+
     fn cell(&self) -> String {
         self.clone()
     }
