@@ -436,7 +436,7 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     }
     for line in lines {
         // A closed pipe (`| head`) is not worth a panic.
-        if writeln!(out, "{line}").is_err() {
+        if writeln!(out, "{}", outputs::printable(&line)).is_err() {
             break;
         }
     }

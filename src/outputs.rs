@@ -263,6 +263,25 @@ pub fn cannot_write(target: &Target, e: &io::Error) -> String {
     }
 }
 
+/// `line` as the terminal shows it: control characters (a file or mesh name may hold an escape
+/// sequence that recolours or rewrites the terminal, or a line feed that splits one finding's
+/// line in two for a hook reading them) written as `\x1b`-style escapes. The CSV, JSON and JUnit
+/// reports keep names as they are (each in its own quoting).
+pub fn printable(line: &str) -> std::borrow::Cow<'_, str> {
+    if !line.chars().any(char::is_control) {
+        return line.into();
+    }
+    let mut out = String::with_capacity(line.len() + 8);
+    for c in line.chars() {
+        if c.is_control() {
+            out.push_str(&format!("\\x{:02x}", u32::from(c)));
+        } else {
+            out.push(c);
+        }
+    }
+    out.into()
+}
+
 /// The `--format lines` lines of one mesh with their severity (for sorting, errors first):
 /// `path[#mesh]: severity rule: what the rule finds (count)` per finding, or
 /// `path: error: message` for a file that could not be read. Pass and empty meshes give none.

@@ -538,6 +538,32 @@ fn reports_are_put_in_place_together_or_not_at_all() {
     assert_eq!(left.len(), 3, "no temporary file left: {left:?}");
 }
 
+/// A file name holding an escape sequence or a line feed reaches the terminal escaped: no raw
+/// control character recolours it, and each finding stays one line for a hook to read.
+#[cfg(unix)]
+#[test]
+fn control_characters_in_names_are_escaped_on_the_terminal() {
+    let tree = Tree::new(&[
+        ("m/red\u{1b}[31m.obj", INSIDE_OUT),
+        ("m/two\nlines.obj", INSIDE_OUT),
+    ]);
+    for format in [&[][..], &["--format", "lines"]] {
+        let run = meshvet(tree.path(), &[&["scan", "m"], format].concat());
+        assert_eq!(run.code, 1, "{}", run.stderr);
+        assert!(!run.stdout.contains('\u{1b}'), "{:?}", run.stdout);
+        assert!(
+            run.stdout.contains("red\\x1b[31m.obj: error"),
+            "{:?}",
+            run.stdout
+        );
+        assert!(
+            run.stdout.contains("two\\x0alines.obj: error"),
+            "{:?}",
+            run.stdout
+        );
+    }
+}
+
 #[test]
 fn bad_commands_exit_2() {
     let tree = Tree::new(&[("a.obj", TETRA)]);
