@@ -391,9 +391,9 @@ fn junit_has_one_suite_a_case_per_mesh_and_the_right_counts() {
     assert_eq!(names.len(), 1, "no temporary file left");
 }
 
-/// The pack files of the cache folder `DIR/cache`.
+/// The files in `dir` whose names start as the cache's packs do.
 fn cache_packs(dir: &Path) -> Vec<std::path::PathBuf> {
-    let mut packs: Vec<_> = std::fs::read_dir(dir.join("cache"))
+    let mut packs: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| {
@@ -438,7 +438,7 @@ fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
     let marker = [0xF5, b'm', b'v', b'3'];
     let mut records = 0;
     let mut size = 0;
-    for pack in cache_packs(dir.path()) {
+    for pack in cache_packs(&dir.path().join("cache")) {
         let mut bytes = std::fs::read(&pack).unwrap();
         let starts: Vec<usize> = (0..bytes.len() - 4)
             .filter(|&i| bytes[i..i + 4] == marker)
@@ -465,7 +465,7 @@ fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
         without_millis(&cold.stdout)
     );
     // That run had the folder to itself and found damage: one clean pack is left.
-    let packs = cache_packs(dir.path());
+    let packs = cache_packs(&dir.path().join("cache"));
     assert_eq!(packs.len(), 1);
     assert!(std::fs::read(&packs[0]).unwrap().len() < size);
     let again = meshvet(dir.path(), &args);
@@ -542,6 +542,74 @@ fn shards_running_at_once_share_one_cache() {
         without_millis(&read(dir.path(), "whole.csv"))
     );
     assert_eq!(whole.code, all.code);
+}
+
+/// Runs `meshvet ARGS` in `cwd`, killing it after a minute: `None` when it had to be killed.
+fn meshvet_or_hang(cwd: &Path, args: &[&str]) -> Option<Run> {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_meshvet"))
+        .args(args)
+        .current_dir(cwd)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(60) {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().unwrap();
+    Some(Run {
+        code: out.status.code().expect("exits normally"),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    })
+}
+
+/// `--cache .` on the scanned folder itself, which holds the user's files named `pack-...` (one a
+/// mesh the scan reads, one named exactly as the cache names its packs): every run reports the
+/// mesh, and the user's files stay as they were, also when a damaged pack of the cache's own
+/// makes a run merge its packs.
+#[test]
+fn the_cache_never_removes_files_it_did_not_write() {
+    let theirs = [
+        ("pack-hole.obj", TRIANGLE),
+        ("pack-list.txt", "my notes\n"),
+        (
+            "pack-00000000000000000001-1-0",
+            "my notes, named like a pack\n",
+        ),
+    ];
+    let dir = tree(&theirs);
+    let args = ["scan", ".", "--cache", ".", "--csv", "-"];
+    for round in 0..3 {
+        let run = meshvet_or_hang(dir.path(), &args)
+            .unwrap_or_else(|| panic!("round {round}: the scan hangs"));
+        assert_eq!(run.code, 0, "round {round}: {}", run.stderr);
+        let rows = without_millis(&run.stdout);
+        assert_eq!(rows.len(), 2, "round {round}: {rows:?}");
+        assert_eq!(
+            (rows[1][0].as_str(), rows[1][3].as_str()),
+            ("pack-hole.obj", "warn")
+        );
+        for (name, text) in theirs {
+            assert_eq!(read(dir.path(), name), text, "round {round}");
+        }
+        // Damage the cache's own packs: the next run merges them.
+        for pack in cache_packs(dir.path()) {
+            let name = pack.file_name().unwrap().to_string_lossy().into_owned();
+            if name.len() > 25 && !theirs.iter().any(|(n, _)| *n == name) && pack.is_file() {
+                let mut bytes = std::fs::read(&pack).unwrap();
+                bytes.extend_from_slice(b"torn");
+                std::fs::write(&pack, bytes).unwrap();
+            }
+        }
+    }
 }
 
 #[test]

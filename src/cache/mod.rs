@@ -27,6 +27,13 @@
 //! run itself. The one-file-per-entry folders of format 2 (`DIR/xx/...`) are ignored, and removed
 //! by the next compaction.
 //!
+//! **Other files.** The folder may hold files that are not the cache's, and meshvet never removes
+//! a file it did not write. A pack is a file named exactly as the cache names them (`pack-`, 20
+//! digits, `-<pid>-<n>`: a user's `pack-hole.obj` is none) that begins with the record marker or
+//! holds a frame that checks (a file of a pack's name without either holds nothing of the cache's:
+//! it is neither counted nor removed). A compaction's temporary file and format 2's entries are
+//! removed only when so named, regular, and begun as the cache began them.
+//!
 //! **Entry.** A record's body holds a header line, a blake3 checksum of the rest, the key, the
 //! content hash, when it was written, the file's dependencies with the stamps of the file and each
 //! dependency, and the payload: the rows as CSV cells (which read back exactly, see
@@ -433,14 +440,17 @@ impl Cache {
         }
         let listing = list(&self.dir)?;
         let own = self.own.get_mut().unwrap_or_else(PoisonError::into_inner);
+        // The packs it read, its own, and the files named like packs that are none.
         let mut known = self.found.names.clone();
         known.extend(own.name.clone());
+        known.extend(self.found.foreign.iter().cloned());
         known.sort();
         if listing.names == known && !self.found.damaged && !own.failed && !listing.leftovers {
             // Nothing but this run changed the folder since it was opened: count from memory.
             let records = self.found.records + own.records;
             let live = (self.index.len() + own.records).saturating_sub(*self.superseded.get_mut());
-            if known.len() <= MAX_PACKS && records - live.min(records) <= live {
+            let packs = self.found.names.len() + usize::from(own.name.is_some());
+            if packs <= MAX_PACKS && records - live.min(records) <= live {
                 return Ok(());
             }
         }

@@ -5,7 +5,7 @@
 use std::cell::RefCell;
 use std::fs::File;
 use std::io::{self, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Starts every record. 0xF5 never occurs in UTF-8, so a search for the next record after damage
@@ -97,6 +97,9 @@ impl Slot {
 pub(super) struct Found {
     /// The packs read, by number.
     pub(super) names: Vec<String>,
+    /// Files named like a pack that are none: no record of the cache is in them, or they could
+    /// not be opened. They are never counted, used or removed.
+    pub(super) foreign: Vec<String>,
     /// Records in them, superseded ones included.
     pub(super) records: usize,
     /// Bytes that are no record (a torn tail, damage), or a pack that could not be read.
@@ -272,6 +275,9 @@ pub(super) struct Listing {
     pub(super) leftovers: bool,
 }
 
+/// The files in `dir` named as the cache names its packs ([`is_pack_name`]), and whether
+/// it has leftovers ([`remove_leftovers`]). Nothing else is a pack, whatever its name starts with:
+/// a user's `pack-notes.txt` in the folder is not the cache's.
 pub(super) fn list(dir: &Path) -> io::Result<Listing> {
     let mut listing = Listing {
         names: Vec::new(),
@@ -282,9 +288,9 @@ pub(super) fn list(dir: &Path) -> io::Result<Listing> {
         let Ok(name) = entry.file_name().into_string() else {
             continue;
         };
-        if name.starts_with("pack-") {
+        if is_pack_name(&name) {
             listing.names.push(name);
-        } else if is_temporary_pack(&name) || is_old_folder(&name) {
+        } else if !listing.leftovers && !old_entries(&entry).is_empty() {
             listing.leftovers = true;
         }
     }
@@ -293,11 +299,13 @@ pub(super) fn list(dir: &Path) -> io::Result<Listing> {
 }
 
 /// Opens and reads every pack in `dir`: the packs, the index of their latest records and what was
-/// found. A pack that cannot be opened is left out (and so never removed by compaction).
+/// found. A file named like a pack that cannot be opened, or in which no record is found (see
+/// [`Indexed::ours`]), is no pack: it is left out, so never removed by compaction.
 pub(super) fn load(dir: &Path) -> io::Result<(Vec<Pack>, Index, Found)> {
     let listing = list(dir)?;
     let mut found = Found {
         names: Vec::new(),
+        foreign: Vec::new(),
         records: 0,
         damaged: false,
         newest: 0,
@@ -305,22 +313,29 @@ pub(super) fn load(dir: &Path) -> io::Result<(Vec<Pack>, Index, Found)> {
     let mut packs = Vec::new();
     let mut slots = Vec::new();
     for name in listing.names {
-        let time = name.split('-').nth(1).and_then(|t| t.parse::<u64>().ok());
-        found.newest = found.newest.max(time.unwrap_or(0));
         let Ok(pack) = Pack::open(&dir.join(&name)) else {
+            found.foreign.push(name);
             continue;
         };
         if packs.len() >= 1 << (64 - OFFSET_BITS) {
             break;
         }
-        match index_pack(&pack, packs.len(), &mut slots) {
-            Ok((records, damaged)) => {
-                found.records += records;
-                found.damaged |= damaged;
-            }
-            // What was indexed before the error stays; the rest of the pack is lost.
-            Err(_) => found.damaged = true,
+        let before = slots.len();
+        let indexed = index_pack(&pack, packs.len(), &mut slots);
+        // What was indexed before a read error stays; the rest of the pack is lost.
+        let indexed = indexed.unwrap_or(Indexed {
+            records: slots.len() - before,
+            damaged: true,
+            ours: slots.len() > before,
+        });
+        if !indexed.ours {
+            found.foreign.push(name);
+            continue;
         }
+        let time = name.split('-').nth(1).and_then(|t| t.parse::<u64>().ok());
+        found.newest = found.newest.max(time.unwrap_or(0));
+        found.records += indexed.records;
+        found.damaged |= indexed.damaged;
         packs.push(pack);
         found.names.push(name);
     }
@@ -330,19 +345,30 @@ pub(super) fn load(dir: &Path) -> io::Result<(Vec<Pack>, Index, Found)> {
     Ok((packs, Index::new(slots), found))
 }
 
-/// Adds the records of pack number `number` to `slots`; returns how many it has and whether it has
-/// bytes that are no record. Bodies are not verified here, only when used.
-pub(super) fn index_pack(
-    pack: &Pack,
-    number: usize,
-    slots: &mut Vec<Slot>,
-) -> io::Result<(usize, bool)> {
+/// What reading one pack's frames found.
+pub(super) struct Indexed {
+    /// Whole records.
+    pub(super) records: usize,
+    /// Bytes that are no record.
+    pub(super) damaged: bool,
+    /// Whether the cache wrote the file: it begins with the record marker (every pack the cache
+    /// writes does, even one torn in its first record) or holds a frame that checks somewhere. A
+    /// file without either holds nothing of the cache's, whatever its name: it is never used
+    /// and never removed.
+    pub(super) ours: bool,
+}
+
+/// Adds the records of pack number `number` to `slots`; returns what it found. Bodies are not
+/// verified here, only when used.
+pub(super) fn index_pack(pack: &Pack, number: usize, slots: &mut Vec<Slot>) -> io::Result<Indexed> {
     let mut window = Window::new(pack);
     let (mut records, mut damaged) = (0, false);
+    let mut ours = window.get(0, MAGIC.len())? == MAGIC;
     let mut at = 0;
     while at < pack.len {
         let bytes = window.get(at, FRAME)?;
         if let Some((id, len)) = frame(bytes) {
+            ours = true;
             let end = at + (FRAME + len) as u64;
             if end <= pack.len && end < 1 << OFFSET_BITS {
                 slots.push(Slot {
@@ -362,7 +388,11 @@ pub(super) fn index_pack(
             None => break,
         }
     }
-    Ok((records, damaged))
+    Ok(Indexed {
+        records,
+        damaged,
+        ours,
+    })
 }
 
 /// The identity and body length in a frame, if it is one.
@@ -401,6 +431,23 @@ pub(super) fn frame_check(bytes: &[u8]) -> u32 {
     })
 }
 
+/// Whether `name` is one [`pack_name`] gives: `pack-`, 20 digits, `-`, digits, `-`, digits.
+pub(super) fn is_pack_name(name: &str) -> bool {
+    let digits = |part: Option<&str>| {
+        part.is_some_and(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit()))
+    };
+    let Some(rest) = name.strip_prefix("pack-") else {
+        return false;
+    };
+    let mut parts = rest.split('-');
+    let time = parts.next();
+    time.is_some_and(|t| t.len() == 20)
+        && digits(time)
+        && digits(parts.next())
+        && digits(parts.next())
+        && parts.next().is_none()
+}
+
 /// `pack-<ns>-<pid>-<n>`, at least one nanosecond later than `newest` (so it sorts after every
 /// pack seen even if the clock went back; if another run's clock is behind, a record may be
 /// superseded by an older one, which costs a miss, never a wrong row).
@@ -411,7 +458,7 @@ pub(super) fn pack_name(newest: u64) -> String {
         .map_or(0, |d| d.as_nanos() as u64);
     format!(
         "pack-{:020}-{}-{}",
-        now.max(newest + 1),
+        now.max(newest.saturating_add(1)),
         std::process::id(),
         NEXT.fetch_add(1, Ordering::Relaxed)
     )
@@ -447,9 +494,21 @@ pub(super) fn remove_if_there(path: &Path) -> io::Result<()> {
     }
 }
 
-/// A compaction's temporary file ([`AtomicFile`] names it `.pack-....tmp`).
+/// A compaction's temporary file: [`AtomicFile`] names it `.NAME.PID.N.tmp` after the pack
+/// `NAME` it becomes.
 pub(super) fn is_temporary_pack(name: &str) -> bool {
-    name.starts_with(".pack-") && name.ends_with(".tmp")
+    is_temporary_of(name, is_pack_name)
+}
+
+/// Whether `name` is `.NAME.PID.N.tmp` (an [`AtomicFile`]'s temporary name) with `is_target(NAME)`.
+fn is_temporary_of(name: &str, is_target: impl Fn(&str) -> bool) -> bool {
+    let digits = |p: &str| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit());
+    let Some(inner) = name.strip_prefix('.').and_then(|n| n.strip_suffix(".tmp")) else {
+        return false;
+    };
+    let mut parts = inner.rsplitn(3, '.');
+    let (n, pid, target) = (parts.next(), parts.next(), parts.next());
+    n.is_some_and(digits) && pid.is_some_and(digits) && target.is_some_and(is_target)
 }
 
 pub(super) fn is_hex(name: &str, len: usize) -> bool {
@@ -461,35 +520,71 @@ pub(super) fn is_old_folder(name: &str) -> bool {
     is_hex(name, 2)
 }
 
-/// Removes compactions' temporary files (only a crash leaves one: compaction holds the folder
-/// alone) and format 2's entries: in each two-hex-digit folder, the files named as it named
-/// entries (62 hex digits) and their temporary files, then the folder if that emptied it.
-/// Anything else is left alone, in case the folder is not only the cache's.
+/// Whether the regular file at `path` is a pack the cache wrote (see [`Indexed::ours`]).
+fn holds_records(path: &Path) -> bool {
+    Pack::open(path)
+        .and_then(|pack| index_pack(&pack, 0, &mut Vec::new()))
+        .is_ok_and(|indexed| indexed.ours)
+}
+
+/// Whether the regular file at `path` begins as the entries of formats 1 and 2 began.
+fn is_old_entry(path: &Path) -> bool {
+    const OLD_HEADER: &[u8] = b"meshvet-cache ";
+    let Ok(pack) = Pack::open(path) else {
+        return false;
+    };
+    let mut start = [0; OLD_HEADER.len()];
+    pack.read_at(&mut start, 0).is_ok_and(|n| n == start.len()) && start == OLD_HEADER
+}
+
+/// What [`remove_leftovers`] removes for the folder entry `entry`: a compaction's temporary
+/// file (only a crash leaves one: compaction holds the folder alone), or in a folder of format 2
+/// (two hex digits) the files named as it named entries (62 hex digits) and their temporary files.
+/// Only a regular file whose name is exactly one the cache gives and whose bytes show the cache
+/// wrote it (a pack's record marker, an old entry's header) is one: anything else is left alone,
+/// in case the folder is not only the cache's.
+fn old_entries(entry: &std::fs::DirEntry) -> Vec<PathBuf> {
+    let is_file = |entry: &std::fs::DirEntry| entry.file_type().is_ok_and(|t| t.is_file());
+    let name = entry.file_name();
+    let Some(name) = name.to_str() else {
+        return Vec::new();
+    };
+    if is_temporary_pack(name) {
+        return if is_file(entry) && holds_records(&entry.path()) {
+            vec![entry.path()]
+        } else {
+            Vec::new()
+        };
+    }
+    if !is_old_folder(name) || !entry.file_type().is_ok_and(|t| t.is_dir()) {
+        return Vec::new();
+    }
+    std::fs::read_dir(entry.path())
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|file| {
+            let name = file.file_name();
+            let named = name
+                .to_str()
+                .is_some_and(|n| is_hex(n, 62) || is_temporary_of(n, |n| is_hex(n, 62)));
+            named && is_file(file) && is_old_entry(&file.path())
+        })
+        .map(|file| file.path())
+        .collect()
+}
+
+/// Removes the leftovers in `dir` (see [`old_entries`]), then each format 2 folder they emptied.
 pub(super) fn remove_leftovers(dir: &Path) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     for entry in entries.flatten() {
-        let name = entry.file_name();
-        let name = name.to_string_lossy();
-        if is_temporary_pack(&name) {
-            let _ = std::fs::remove_file(entry.path());
-        } else if is_old_folder(&name) && entry.file_type().is_ok_and(|t| t.is_dir()) {
-            for file in std::fs::read_dir(entry.path())
-                .into_iter()
-                .flatten()
-                .flatten()
-            {
-                let name = file.file_name();
-                let name = name.to_string_lossy();
-                let temporary = name
-                    .strip_prefix('.')
-                    .filter(|n| n.ends_with(".tmp"))
-                    .and_then(|n| n.get(..62));
-                if is_hex(&name, 62) || temporary.is_some_and(|n| is_hex(n, 62)) {
-                    let _ = std::fs::remove_file(file.path());
-                }
-            }
+        let files = old_entries(&entry);
+        for file in &files {
+            let _ = std::fs::remove_file(file);
+        }
+        if !files.is_empty() && entry.file_type().is_ok_and(|t| t.is_dir()) {
             let _ = std::fs::remove_dir(entry.path());
         }
     }

@@ -56,7 +56,20 @@ fn without_millis(mut outcomes: Vec<Outcome>) -> Vec<Outcome> {
     outcomes
 }
 
+/// The packs of `DIR/cache` (not the files there only named like packs).
 fn packs(dir: &Path) -> Vec<PathBuf> {
+    load(&dir.join("cache"))
+        .unwrap()
+        .2
+        .names
+        .iter()
+        .map(|n| dir.join("cache").join(n))
+        .collect()
+}
+
+/// The regular files of `DIR/cache` named as packs are, one still empty in its writer's buffer
+/// included.
+fn pack_files(dir: &Path) -> Vec<PathBuf> {
     list(&dir.join("cache"))
         .unwrap()
         .names
@@ -560,16 +573,20 @@ fn too_many_packs_are_merged() {
 fn a_second_open_cache_is_neither_lost_nor_removed() {
     let dir = tempfile::tempdir().unwrap();
     let sources = tree(dir.path(), MAX_PACKS + 4);
-    // Enough packs that compaction is due.
+    // Enough packs that compaction is due (none compacts while `blocker` is open), and the user's
+    // files named like packs, which are none.
+    let blocker = open(dir.path());
     for i in 0..=MAX_PACKS {
         run(dir.path(), &sources[i..=i]);
         std::fs::write(
             dir.path().join("cache").join(format!("pack-{i}")),
-            b"not a pack: damage",
+            b"not a pack",
         )
         .unwrap();
     }
-    let before = packs(dir.path());
+    drop(blocker);
+    let before = pack_files(dir.path());
+    assert_eq!(before.len(), MAX_PACKS + 1);
     let a = open(dir.path());
     let b = open(dir.path());
     let shared = MAX_PACKS + 1;
@@ -580,7 +597,7 @@ fn a_second_open_cache_is_neither_lost_nor_removed() {
     assert_eq!(look(&b, &sources[shared + 1..shared + 2]).len(), 1);
     // `b` is open: `a` may not compact, so every pack is still there, `b`'s own too.
     a.finish().unwrap();
-    let after_a = packs(dir.path());
+    let after_a = pack_files(dir.path());
     assert_eq!(after_a.len(), before.len() + 2);
     assert!(before.iter().all(|p| after_a.contains(p)));
     // `b` still reads what it opened.
@@ -594,6 +611,10 @@ fn a_second_open_cache_is_neither_lost_nor_removed() {
     let (stats, rows) = run(dir.path(), &sources);
     assert_eq!(stats.hits, sources.len());
     assert_eq!(rows, fresh(&sources));
+    for i in 0..=MAX_PACKS {
+        let theirs = dir.path().join("cache").join(format!("pack-{i}"));
+        assert_eq!(std::fs::read(theirs).unwrap(), b"not a pack");
+    }
 }
 
 #[test]
@@ -604,16 +625,30 @@ fn format_2_entries_are_removed_by_compaction_and_nothing_else() {
     let entry = format!("{:062x}", 7);
     std::fs::create_dir_all(cache.join("ab")).unwrap();
     std::fs::write(cache.join("ab").join(&entry), "meshvet-cache 2\n").unwrap();
-    std::fs::write(cache.join("ab").join(format!(".{entry}.12.0.tmp")), "").unwrap();
+    std::fs::write(
+        cache.join("ab").join(format!(".{entry}.12.0.tmp")),
+        "meshvet-cache 2\nha",
+    )
+    .unwrap();
     std::fs::create_dir_all(cache.join("cd")).unwrap();
     std::fs::write(cache.join("cd").join("notes.txt"), "mine").unwrap();
+    std::fs::write(cache.join("cd").join(&entry), "mine, named like an entry").unwrap();
     std::fs::write(cache.join("notes.txt"), "mine").unwrap();
-    std::fs::write(cache.join(".pack-1-2-3.1.0.tmp"), "half").unwrap();
+    // A compaction's temporary file, torn after its first marker; and the user's.
+    let temporary = ".pack-00000000000000000001-2-3.4.0.tmp";
+    std::fs::write(cache.join(temporary), b"\xF5mv3half").unwrap();
+    std::fs::write(cache.join(".pack-1-2-3.1.0.tmp"), "mine").unwrap();
+    std::fs::write(cache.join(".pack-00000000000000000001-2-3.5.0.tmp"), "mine").unwrap();
     let (stats, _) = run(dir.path(), &sources);
     assert_eq!(stats.misses, 1, "format 2's entry is not read");
     assert!(!cache.join("ab").exists());
-    assert!(!cache.join(".pack-1-2-3.1.0.tmp").exists());
+    assert!(!cache.join(temporary).exists());
+    assert!(cache.join(".pack-1-2-3.1.0.tmp").exists());
+    assert!(cache
+        .join(".pack-00000000000000000001-2-3.5.0.tmp")
+        .exists());
     assert!(cache.join("cd/notes.txt").exists());
+    assert!(cache.join("cd").join(&entry).exists());
     assert!(cache.join("notes.txt").exists());
     let (stats, _) = run(dir.path(), &sources);
     assert_eq!(stats.hits, 1);
@@ -686,4 +721,75 @@ fn the_same_relative_path_under_two_roots_is_two_files() {
     let (stats, rows) = run(dir.path(), &sources);
     assert_eq!(stats.hits, 2);
     assert_eq!(rows, fresh(&sources));
+}
+
+/// A folder used as the cache that also holds the user's files, some named like packs
+/// (`pack-...`) or a compaction's temporary files: however often the cache compacts, they stay
+/// as they were. Only a regular file named exactly as the cache names its packs, and in which a
+/// record of the cache is found, is a pack.
+#[test]
+fn files_in_the_cache_folder_that_are_not_its_packs_are_never_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    std::fs::create_dir_all(&cache).unwrap();
+    let theirs: [(&str, &[u8]); 7] = [
+        ("pack-hole.obj", OPEN.as_bytes()),
+        ("pack-list.txt", b"my notes\n"),
+        ("pack-", b"x"),
+        // The exact name of a pack, but no record in it: nothing the cache wrote.
+        (
+            "pack-00000000000000000001-1-0",
+            b"my notes, named like a pack\n",
+        ),
+        ("pack-00000000000000000002-1-0", b""),
+        // A marker but no frame further on: not at the start, so not the cache's either.
+        ("pack-00000000000000000003-1-0", b"notes \xF5mv3 and more"),
+        (
+            ".pack-00000000000000000004-1-0.1.0.tmp",
+            b"half of my notes",
+        ),
+    ];
+    for (name, bytes) in theirs {
+        std::fs::write(cache.join(name), bytes).unwrap();
+    }
+    let sources = tree(dir.path(), MAX_PACKS + 1);
+    // One pack per run, so the last run compacts; then a damaged pack, so the next one does.
+    for i in 0..=MAX_PACKS {
+        run(dir.path(), &sources[i..=i]);
+    }
+    assert_eq!(packs(dir.path()).len(), 1, "the last run merged its packs");
+    let pack = packs(dir.path()).remove(0);
+    let mut bytes = std::fs::read(&pack).unwrap();
+    bytes.extend_from_slice(b"torn");
+    std::fs::write(&pack, bytes).unwrap();
+    let (stats, rows) = run(dir.path(), &sources);
+    assert_eq!(stats.hits, MAX_PACKS + 1);
+    assert_eq!(rows, fresh(&sources));
+    assert!(!pack.exists(), "the damaged pack was merged away");
+    for (name, bytes) in theirs {
+        assert_eq!(std::fs::read(cache.join(name)).unwrap(), bytes, "{name}");
+    }
+    // They count as no pack: not damage, not towards the packs that make a merge due.
+    let (packs, _, found) = load(&cache).unwrap();
+    assert_eq!((packs.len(), found.damaged), (1, false));
+    assert_eq!(found.foreign.len(), 3, "{:?}", found.foreign);
+}
+
+/// A pack the cache wrote, torn in its first record, is still the cache's (it begins with the
+/// marker): it is merged away like any damaged pack.
+#[test]
+fn a_pack_torn_in_its_first_record_is_still_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let sources = tree(dir.path(), 1);
+    run(dir.path(), &sources);
+    let pack = packs(dir.path()).remove(0);
+    let bytes = std::fs::read(&pack).unwrap();
+    std::fs::write(&pack, &bytes[..FRAME - 1]).unwrap();
+    let (_, _, found) = load(&dir.path().join("cache")).unwrap();
+    assert_eq!(found.names.len(), 1);
+    assert!(found.damaged);
+    let (stats, _) = run(dir.path(), &sources);
+    assert_eq!(stats.misses, 1);
+    assert!(!pack.exists());
+    assert_eq!(packs(dir.path()).len(), 1);
 }
