@@ -572,11 +572,11 @@ fn meshvet_or_hang(cwd: &Path, args: &[&str]) -> Option<Run> {
 }
 
 /// `--cache .` on the scanned folder itself, which holds the user's files named `pack-...` (one a
-/// mesh the scan reads, one named exactly as the cache names its packs): every run reports the
-/// mesh, and the user's files stay as they were, also when a damaged pack of the cache's own
-/// makes a run merge its packs.
+/// mesh the scan reads, one named exactly as the cache names its packs) and a FIFO named like a
+/// pack: every run finishes and reports the mesh, and the user's files stay as they were, also
+/// when a damaged pack of the cache's own makes a run merge its packs.
 #[test]
-fn the_cache_never_removes_files_it_did_not_write() {
+fn the_cache_never_removes_or_waits_on_files_it_did_not_write() {
     let theirs = [
         ("pack-hole.obj", TRIANGLE),
         ("pack-list.txt", "my notes\n"),
@@ -586,6 +586,16 @@ fn the_cache_never_removes_files_it_did_not_write() {
         ),
     ];
     let dir = tree(&theirs);
+    #[cfg(unix)]
+    let fifo = {
+        let fifo = dir.path().join("pack-00000000000000000002-1-0");
+        assert!(Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success());
+        fifo
+    };
     let args = ["scan", ".", "--cache", ".", "--csv", "-"];
     for round in 0..3 {
         let run = meshvet_or_hang(dir.path(), &args)
@@ -599,6 +609,12 @@ fn the_cache_never_removes_files_it_did_not_write() {
         );
         for (name, text) in theirs {
             assert_eq!(read(dir.path(), name), text, "round {round}");
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::FileTypeExt;
+            let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+            assert!(kind.is_fifo(), "round {round}");
         }
         // Damage the cache's own packs: the next run merges them.
         for pack in cache_packs(dir.path()) {

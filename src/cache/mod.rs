@@ -28,11 +28,13 @@
 //! by the next compaction.
 //!
 //! **Other files.** The folder may hold files that are not the cache's, and meshvet never removes
-//! a file it did not write. A pack is a file named exactly as the cache names them (`pack-`, 20
-//! digits, `-<pid>-<n>`: a user's `pack-hole.obj` is none) that begins with the record marker or
-//! holds a frame that checks (a file of a pack's name without either holds nothing of the cache's:
-//! it is neither counted nor removed). A compaction's temporary file and format 2's entries are
-//! removed only when so named, regular, and begun as the cache began them.
+//! a file it did not write. A pack is a regular file named exactly as the cache names them
+//! (`pack-`, 20 digits, `-<pid>-<n>`: a user's `pack-hole.obj` is none) that begins with the record
+//! marker or holds a frame that checks (a file of a pack's name without either holds nothing of
+//! the cache's: it is neither counted nor removed). The type is checked without following a link
+//! before a pack is opened, and again on what was opened: a link named like a pack may lead
+//! anywhere, and opening a FIFO would wait for ever. A compaction's temporary file and format 2's
+//! entries are removed only when so named, regular, and begun as the cache began them.
 //!
 //! **Entry.** A record's body holds a header line, a blake3 checksum of the rest, the key, the
 //! content hash, when it was written, the file's dependencies with the stamps of the file and each
@@ -150,13 +152,20 @@ impl Cache {
     /// shared lock (waiting while another run compacts) and reads every pack's frames.
     pub fn open(dir: &Path, settings: &Settings) -> io::Result<Cache> {
         std::fs::create_dir_all(dir)?;
-        let lock = File::options()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
+        let mut options = File::options();
+        options.read(true).write(true).create(true).truncate(false);
+        // A link named `lock` is not followed (it may lead anywhere: the open would create or
+        // lock a file outside the folder), nor a FIFO waited on; without a lock the cache still
+        // works, it only never compacts.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::OpenOptionsExt;
+            options.custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK);
+        }
+        let lock = options
             .open(dir.join("lock"))
             .ok()
+            .filter(|lock| lock.metadata().is_ok_and(|m| m.is_file()))
             .filter(|lock| lock.lock_shared().is_ok());
         let (packs, index, found) = load(dir)?;
         static SERIAL: AtomicU64 = AtomicU64::new(0);

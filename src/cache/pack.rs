@@ -120,11 +120,28 @@ pub(super) struct Pack {
 }
 
 impl Pack {
+    /// Opens the regular file at `path` for reading. Anything else is refused unopened: a FIFO
+    /// would block the open (and every scan with it), a device or a link could be anything. The
+    /// type is checked without following a link before opening, and again on what was opened (the
+    /// name may have been replaced in between; on unix the open itself neither follows a link nor
+    /// waits for a FIFO's writer).
     pub(super) fn open(path: &Path) -> io::Result<Pack> {
+        if !std::fs::symlink_metadata(path)?.is_file() {
+            return Err(io::Error::other("not a regular file"));
+        }
+        #[cfg(unix)]
+        let file = {
+            use std::os::unix::fs::OpenOptionsExt;
+            File::options()
+                .read(true)
+                .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
+                .open(path)?
+        };
+        #[cfg(not(unix))]
         let file = File::open(path)?;
         let meta = file.metadata()?;
         if !meta.is_file() {
-            return Err(io::Error::other("not a pack"));
+            return Err(io::Error::other("not a regular file"));
         }
         let len = meta.len();
         #[cfg(not(unix))]
@@ -275,7 +292,7 @@ pub(super) struct Listing {
     pub(super) leftovers: bool,
 }
 
-/// The files in `dir` named as the cache names its packs ([`is_pack_name`]), and whether
+/// The regular files in `dir` named as the cache names its packs ([`is_pack_name`]), and whether
 /// it has leftovers ([`remove_leftovers`]). Nothing else is a pack, whatever its name starts with:
 /// a user's `pack-notes.txt` in the folder is not the cache's.
 pub(super) fn list(dir: &Path) -> io::Result<Listing> {
@@ -288,8 +305,14 @@ pub(super) fn list(dir: &Path) -> io::Result<Listing> {
         let Ok(name) = entry.file_name().into_string() else {
             continue;
         };
+        // The entry's own type: a link is not followed, a FIFO or a device is no pack.
+        let Ok(kind) = entry.file_type() else {
+            continue;
+        };
         if is_pack_name(&name) {
-            listing.names.push(name);
+            if kind.is_file() {
+                listing.names.push(name);
+            }
         } else if !listing.leftovers && !old_entries(&entry).is_empty() {
             listing.leftovers = true;
         }

@@ -793,3 +793,73 @@ fn a_pack_torn_in_its_first_record_is_still_removed() {
     assert!(!pack.exists());
     assert_eq!(packs(dir.path()).len(), 1);
 }
+
+/// A FIFO named like a pack (or a compaction's temporary file) would block the open for ever, and
+/// a link named like one may lead anywhere: neither is opened, read through or removed.
+#[cfg(unix)]
+#[test]
+fn a_fifo_or_link_named_like_a_pack_is_neither_opened_nor_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let sources = tree(dir.path(), MAX_PACKS + 1);
+    // A real pack, moved out of the folder and linked to from it.
+    run(dir.path(), &sources[..1]);
+    let pack = packs(dir.path()).remove(0);
+    let outside = dir.path().join("outside-pack");
+    std::fs::rename(&pack, &outside).unwrap();
+    std::os::unix::fs::symlink(&outside, &pack).unwrap();
+    let kept = std::fs::read(&outside).unwrap();
+    let fifos = [
+        "pack-00000000000000000001-1-0",
+        ".pack-00000000000000000001-1-0.1.0.tmp",
+    ];
+    for name in fifos {
+        let status = std::process::Command::new("mkfifo")
+            .arg(cache.join(name))
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+    let (done, wait) = std::sync::mpsc::channel();
+    let (root, all) = (dir.path().to_owned(), sources.clone());
+    std::thread::spawn(move || {
+        let first = run(&root, &all[..1]);
+        // One pack per run, so the last run compacts.
+        for i in 1..=MAX_PACKS {
+            run(&root, &all[i..=i]);
+        }
+        let _ = done.send(first);
+    });
+    let (stats, rows) = wait
+        .recv_timeout(std::time::Duration::from_secs(60))
+        .expect("the runs hang on the FIFO");
+    assert_eq!((stats.hits, stats.misses), (0, 1), "the link was not read");
+    assert_eq!(rows, fresh(&sources[..1]));
+    assert_eq!(packs(dir.path()).len(), 1, "the last run merged its packs");
+    let link = std::fs::symlink_metadata(&pack).unwrap();
+    assert!(link.file_type().is_symlink());
+    assert_eq!(std::fs::read(&outside).unwrap(), kept);
+    for name in fifos {
+        use std::os::unix::fs::FileTypeExt;
+        let meta = std::fs::symlink_metadata(cache.join(name)).unwrap();
+        assert!(meta.file_type().is_fifo(), "{name}");
+    }
+}
+
+/// A link named `lock` in the cache folder is not followed: nothing is created or locked where it
+/// leads, and the cache still works (without a lock it never compacts).
+#[cfg(unix)]
+#[test]
+fn a_link_named_lock_is_not_followed() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    std::fs::create_dir_all(&cache).unwrap();
+    let outside = dir.path().join("outside-lock");
+    std::os::unix::fs::symlink(&outside, cache.join("lock")).unwrap();
+    let sources = tree(dir.path(), 1);
+    run(dir.path(), &sources);
+    let (stats, rows) = run(dir.path(), &sources);
+    assert_eq!(stats.hits, 1);
+    assert_eq!(rows, fresh(&sources));
+    assert!(!outside.exists(), "the link was followed");
+}
