@@ -25,11 +25,12 @@ use crate::rules::{Finding, Rule, Status};
 use crate::topology::Built;
 use crate::walk::STAGE_PREFIX;
 
-/// Where the copy of the file reported as `display` goes under `dir`: the report path with
-/// anything that would climb out (`..`, a root) left out.
-pub fn copy_path(dir: &Path, display: &str) -> PathBuf {
+/// Where the copy of the file whose report path is `report_path` goes under `dir`: that path
+/// ([`crate::walk::Source::report_path`], the real bytes of every name, so `part\xff.stl` is
+/// copied as `part\xff.stl`) with anything that would climb out (`..`, a root) left out.
+pub fn copy_path(dir: &Path, report_path: &Path) -> PathBuf {
     let mut out = dir.to_path_buf();
-    for c in Path::new(display).components() {
+    for c in report_path.components() {
         if let Component::Normal(part) = c {
             out.push(part);
         }
@@ -50,7 +51,8 @@ pub struct Repaired {
 /// A repaired copy in place, and what judging it again found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Copy {
-    /// The copy's path as the report writes it (`/` separators).
+    /// The copy's path as the report writes it (`/` separators, names shown as in report paths:
+    /// see [`crate::walk`]).
     pub path: String,
     /// The plan's summary: `drop-degenerate-faces:2;orient-faces:14;...`.
     pub repairs: String,
@@ -68,7 +70,7 @@ pub struct Copy {
 #[allow(clippy::too_many_arguments)]
 pub fn repair_file(
     dir: &Path,
-    display: &str,
+    report_path: &Path,
     source: &Path,
     format: Format,
     context: &ReadContext,
@@ -120,7 +122,7 @@ pub fn repair_file(
         say_not_repairable(&mut repaired, left, &[]);
         return repaired;
     }
-    let out = copy_path(dir, display);
+    let out = copy_path(dir, report_path);
     let failed = |repaired: &mut [Repaired], why: &str| {
         for (plan, done) in plans.iter().zip(repaired.iter_mut()) {
             if plan.is_some() {
@@ -135,7 +137,8 @@ pub fn repair_file(
         )
     }) {
         Ok(Ok(checked)) => {
-            let path = out.to_string_lossy().replace('\\', "/");
+            // Shown as report paths are, so copies of two names stay two paths.
+            let path = crate::walk::shown(&out, true);
             for (((plan, done), after), met) in plans
                 .iter()
                 .zip(repaired.iter_mut())

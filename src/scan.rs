@@ -247,7 +247,7 @@ fn read_and_judge(
     let repaired = match &settings.repair_dir {
         Some(dir) => copies::repair_file(
             dir,
-            &source.display,
+            &source.report_path,
             &source.path,
             format,
             &context,

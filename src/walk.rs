@@ -6,14 +6,26 @@
 //! folders only regular files are listed.
 //!
 //! Report paths: with one folder PATH, a file's path is relative to it, with `/` separators; a file
-//! named on the command line is reported as written (without a leading `./`). With several PATHs each file's path is the PATH as written (without a
-//! leading `./`) joined with that relative path, so rows from different PATHs stay distinct; the list
-//! is sorted by report path and a file reached twice is listed once. Names that are not UTF-8 are kept
-//! and reported lossily (U+FFFD for the bad bytes).
+//! named on the command line is reported as written (without a leading `./`). With several PATHs
+//! each file's path is the PATH as written (without a leading `./`) joined with that relative path,
+//! so rows from different PATHs stay distinct; the list is sorted by report path. A file reached
+//! twice (a folder and a file in it, or one file spelt two ways: `a/b.obj`, `/abs/a/b.obj`,
+//! `a/../a/b.obj`, a link named on the command line) is listed once, under the spelling reached
+//! first; it is told by its real path (the walked folder's canonical path joined with the path
+//! below it, a named file's canonical path), so two hard links to one file are two names, both
+//! listed.
+//!
+//! Names that are not UTF-8 are kept (the file is read by its real name, and a repaired copy gets
+//! that name) and shown in the report path with each byte that is not UTF-8 as `\xHH` (two
+//! upper-case hex digits): `bad\xFF.obj`. So that no two names show alike, a backslash in a name
+//! is doubled when the next character shown is `x` or another backslash: a file really named
+//! `bad\xFF.obj` shows as `bad\\xFF.obj`. Every other name shows as it is.
 //!
 //! Include and exclude globs match the relative path or the report path, for walked and named files
 //! alike; `*` also crosses `/`. An excluded folder is not descended into.
 
+use std::collections::HashSet;
+use std::ffi::OsStr;
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
 
@@ -31,8 +43,11 @@ pub const STAGE_PREFIX: &str = ".meshvet-stage-";
 pub struct Source {
     /// Where to read the file.
     pub path: PathBuf,
-    /// The path in the report (see the module docs).
+    /// The path in the report (see the module docs): [`Source::report_path`] as text.
     pub display: String,
+    /// The path in the report with the real bytes of every name (a repaired copy is named from
+    /// it, not from `display`, which escapes the bytes that are not UTF-8).
+    pub report_path: PathBuf,
     /// The tree every file a model names (glTF buffers and images, OBJ material libraries) must
     /// stay inside: `--root`, else the folder given, or for a file given alone the current folder
     /// (when the file is inside it) or its own folder. Shared by every file of a walked folder (a
@@ -108,6 +123,10 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
     let current: Arc<Path> = Path::new(".").into();
     let current_real = Path::new(".").canonicalize().ok();
     let mut sources = Vec::new();
+    // The real paths listed so far: only several PATHs can reach one file twice.
+    let mut seen = Seen {
+        paths: prefixed.then(HashSet::new),
+    };
     for given in paths {
         let prefix = if prefixed {
             normalise(given)
@@ -116,7 +135,13 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
         };
         if given.is_dir() {
             let tree = given_root.clone().unwrap_or_else(|| given.as_path().into());
-            walk_folder(given, &prefix, filter, &tree, &mut sources);
+            let folder = Folder {
+                root: given,
+                real: real(given),
+                prefix: &prefix,
+                tree: &tree,
+            };
+            walk_folder(&folder, filter, &mut seen, &mut sources);
         } else {
             let name = given
                 .file_name()
@@ -125,6 +150,9 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
             // The path as written (less `./`), so `a/part.obj` and `b/part.obj` stay apart.
             let display = normalise(given);
             if !filter.admits(&[&name, &display]) {
+                continue;
+            }
+            if !seen.first(|| real(given)) {
                 continue;
             }
             let folder = match given.parent() {
@@ -151,24 +179,56 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
                 format: Format::of_path(given),
                 path: given.clone(),
                 display: slashed(&display),
+                report_path: display,
                 root,
                 error,
             });
         }
     }
+    // Report paths are distinct (one per real path, and names shown injectively): the sort alone
+    // orders the list.
     sources.sort_by(|a, b| a.display.cmp(&b.display));
-    sources.dedup_by(|a, b| a.display == b.display);
     sources
 }
 
-fn walk_folder(
-    root: &Path,
-    prefix: &Path,
-    filter: &Filter,
-    tree: &Arc<Path>,
-    sources: &mut Vec<Source>,
-) {
-    let shared_root = tree.clone();
+/// The real paths of the files listed so far, when a file can be reached twice.
+struct Seen {
+    paths: Option<HashSet<PathBuf>>,
+}
+
+impl Seen {
+    /// Whether the file whose real path `real` gives is reached for the first time (always, when
+    /// no file can be reached twice: then `real` is not called).
+    fn first(&mut self, real: impl FnOnce() -> PathBuf) -> bool {
+        self.paths.as_mut().is_none_or(|paths| paths.insert(real()))
+    }
+}
+
+/// The canonical path of `path`; for one that cannot be resolved (missing, unreadable), its
+/// absolute path as written, less `.` components.
+fn real(path: &Path) -> PathBuf {
+    path.canonicalize().unwrap_or_else(|_| {
+        let path = normalise(path);
+        std::path::absolute(&path).unwrap_or(path)
+    })
+}
+
+/// A folder PATH being walked.
+struct Folder<'a> {
+    /// As written.
+    root: &'a Path,
+    /// Its real path ([`real`]): a file below it is `real` joined with its path below `root`, as
+    /// the walk follows no link.
+    real: PathBuf,
+    /// What report paths start with (the folder as written, with several PATHs).
+    prefix: &'a Path,
+    /// The tree every file a model names must stay inside.
+    tree: &'a Arc<Path>,
+}
+
+fn walk_folder(folder: &Folder<'_>, filter: &Filter, seen: &mut Seen, sources: &mut Vec<Source>) {
+    let (root, prefix) = (folder.root, folder.prefix);
+    let shared_root = folder.tree.clone();
     let relative = |p: &Path| p.strip_prefix(root).unwrap_or(p).to_owned();
     let walker = walkdir::WalkDir::new(root)
         .follow_links(false)
@@ -199,9 +259,13 @@ fn walk_folder(
                 if !filter.admits(&[&rel, &display]) {
                     continue;
                 }
+                if !seen.first(|| folder.real.join(&rel)) {
+                    continue;
+                }
                 sources.push(Source {
                     path: e.path().to_owned(),
                     display: slashed(&display),
+                    report_path: display,
                     root: shared_root.clone(),
                     format: Some(format),
                     error: None,
@@ -210,13 +274,18 @@ fn walk_folder(
             Err(e) => {
                 // A folder or file the walk could not look at still gets a row.
                 let path = e.path().unwrap_or(root).to_owned();
-                let display = prefix.join(relative(&path));
+                let rel = relative(&path);
+                if !seen.first(|| folder.real.join(&rel)) {
+                    continue;
+                }
+                let report_path = prefix.join(&rel);
                 let why = e
                     .io_error()
                     .map_or_else(|| e.to_string(), |io| io.to_string());
                 sources.push(Source {
                     format: Format::of_path(&path),
-                    display: slashed(&display),
+                    display: slashed(&report_path),
+                    report_path,
                     path,
                     root: shared_root.clone(),
                     error: Some(format!(
@@ -235,22 +304,67 @@ fn normalise(path: &Path) -> PathBuf {
         .collect()
 }
 
-/// A path as the report writes it: components joined by `/`, lossy for non-UTF-8 names.
+/// A path as the report writes it: components joined by `/`, without `.` components, names shown
+/// as the module docs say (each byte that is not UTF-8 as `\xHH`).
 pub fn slashed(path: &Path) -> String {
+    shown(path, false)
+}
+
+/// `path` joined by `/` with its names shown as in a report path (see the module docs), keeping
+/// `.` components when `keep_dots` (a repaired copy's path under the repair folder as given).
+pub fn shown(path: &Path, keep_dots: bool) -> String {
     let mut out = String::new();
     for c in path.components() {
         match c {
             Component::RootDir => out.push('/'),
-            Component::CurDir => continue,
+            Component::CurDir if !keep_dots => continue,
             _ => {
                 if !out.is_empty() && !out.ends_with('/') {
                     out.push('/');
                 }
-                out.push_str(&c.as_os_str().to_string_lossy());
+                push_name(&mut out, c.as_os_str());
             }
         }
     }
     out
+}
+
+/// Appends `name` as a report shows it: UTF-8 as it is, each other byte as `\xHH`, and a
+/// backslash doubled when the next character shown is `x` or a backslash (so `\x` in the
+/// output always starts an escaped byte, and no two names show alike).
+fn push_name(out: &mut String, name: &OsStr) {
+    let bytes = name.as_encoded_bytes();
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        if !text.contains('\\') {
+            out.push_str(text);
+            return;
+        }
+    }
+    // What the name shows as, piece by piece: a character, or a byte that is not UTF-8.
+    enum Piece {
+        Char(char),
+        Byte(u8),
+    }
+    let pieces: Vec<Piece> = bytes
+        .utf8_chunks()
+        .flat_map(|chunk| {
+            let chars = chunk.valid().chars().map(Piece::Char);
+            chars.chain(chunk.invalid().iter().map(|&b| Piece::Byte(b)))
+        })
+        .collect();
+    for (i, piece) in pieces.iter().enumerate() {
+        match piece {
+            Piece::Char('\\') => {
+                let escaped = matches!(
+                    pieces.get(i + 1),
+                    Some(Piece::Char('\\' | 'x') | Piece::Byte(_))
+                );
+                out.push_str(if escaped { "\\\\" } else { "\\" });
+            }
+            Piece::Char(c) => out.push(*c),
+            Piece::Byte(b) => out.push_str(&format!("\\x{b:02X}")),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -350,14 +464,87 @@ mod tests {
         assert_eq!(displays(&walked), ["a.stl"]);
     }
 
+    /// Two names that differ only in bytes that are not UTF-8, a name with U+FFFD where they
+    /// have those bytes, and names that hold what an escaped byte looks like: five files, five
+    /// report paths, each file read and copied by its real name.
     #[cfg(unix)]
     #[test]
-    fn non_utf8_names_are_listed_lossily() {
+    fn names_that_are_not_utf8_are_shown_distinctly_and_kept_whole() {
         use std::os::unix::ffi::OsStrExt;
+        let names: [(&[u8], &str); 5] = [
+            (b"bad\xff.obj", "bad\\xFF.obj"),
+            (b"bad\xfe.obj", "bad\\xFE.obj"),
+            ("bad\u{fffd}.obj".as_bytes(), "bad\u{fffd}.obj"),
+            // A backslash, `x`, `F`, `F`: the backslash is doubled.
+            (b"bad\\xFF.obj", "bad\\\\xFF.obj"),
+            // A backslash, then the byte 0xFF.
+            (b"bad\\\xff.obj", "bad\\\\\\xFF.obj"),
+        ];
         let dir = tempfile::tempdir().unwrap();
-        let name = std::ffi::OsStr::from_bytes(b"bad\xff.obj");
-        fs::write(dir.path().join(name), "").unwrap();
+        for (name, _) in names {
+            fs::write(dir.path().join(OsStr::from_bytes(name)), name).unwrap();
+        }
         let got = walk(&[dir.path().to_owned()], &Filter::everything());
-        assert_eq!(displays(&got), ["bad\u{fffd}.obj"]);
+        let mut want: Vec<&str> = names.iter().map(|(_, shown)| *shown).collect();
+        want.sort();
+        assert_eq!(displays(&got), want);
+        for source in &got {
+            let (name, _) = names.iter().find(|(_, s)| *s == source.display).unwrap();
+            assert_eq!(source.report_path.as_os_str().as_bytes(), *name);
+            assert_eq!(fs::read(&source.path).unwrap(), *name);
+        }
+        // A backslash before anything else, and at the end, shows as it is.
+        assert_eq!(slashed(Path::new("a\\b/c\\")), "a\\b/c\\");
+        assert_eq!(slashed(Path::new("a\\\\b")), "a\\\\\\b");
+    }
+
+    /// One file named through a folder given, by another spelling, through `..` and through a
+    /// link: listed once, under the spelling reached first. A hard link is another name, listed.
+    #[cfg(unix)]
+    #[test]
+    fn a_file_reached_twice_is_listed_once_under_its_first_spelling() {
+        let dir = tree(&["x/a.obj", "x/b.obj", "y/c.obj"]);
+        fs::hard_link(dir.path().join("x/a.obj"), dir.path().join("x/hard.obj")).unwrap();
+        std::os::unix::fs::symlink(dir.path().join("x/a.obj"), dir.path().join("link.obj"))
+            .unwrap();
+        let base = slashed(dir.path());
+        let given = |p: &str| dir.path().join(p);
+        let got = walk(
+            &[
+                given("y/../x/a.obj"),
+                given("x"),
+                given("link.obj"),
+                given("x/./b.obj"),
+                given("y"),
+            ],
+            &Filter::everything(),
+        );
+        assert_eq!(
+            displays(&got),
+            [
+                format!("{base}/x/b.obj"),
+                format!("{base}/x/hard.obj"),
+                format!("{base}/y/../x/a.obj"),
+                format!("{base}/y/c.obj"),
+            ]
+        );
+        let got = walk(
+            &[given("x"), given("y/../x/a.obj"), given("x/a.obj")],
+            &Filter::everything(),
+        );
+        assert_eq!(
+            displays(&got),
+            [
+                format!("{base}/x/a.obj"),
+                format!("{base}/x/b.obj"),
+                format!("{base}/x/hard.obj"),
+            ]
+        );
+        // A path that does not exist, named twice: one error entry.
+        let got = walk(
+            &[given("gone.obj"), given("./gone.obj")],
+            &Filter::everything(),
+        );
+        assert_eq!(displays(&got), [format!("{base}/gone.obj")]);
     }
 }

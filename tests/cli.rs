@@ -717,9 +717,9 @@ fn hostile_files_get_rows_and_the_good_file_is_still_reported() {
     assert_eq!(status("empty.obj").0, "empty");
     if odd_name {
         assert_eq!(
-            status("odd-\u{fffd}.obj").0,
+            status("odd-\\xFF.obj").0,
             "pass",
-            "a non-UTF-8 name still gets a row"
+            "a non-UTF-8 name still gets a row, the byte shown as \\xFF"
         );
     }
     let good = rows.iter().find(|r| r[0] == "good.obj").unwrap();
@@ -1238,4 +1238,100 @@ fn faces_that_meet_have_columns_and_can_be_switched_off() {
     assert_eq!(cell(&off.stdout, "self_intersections"), "");
     assert_eq!(cell(&off.stdout, "intersecting_components"), "");
     assert_eq!(cell(&off.stdout, "findings"), "");
+}
+
+/// Two files whose names differ only in a byte that is not UTF-8, and a third named with U+FFFD
+/// where they have that byte: three rows, the bytes shown as `\xHH`; sharded, each file lands in
+/// exactly one shard and the merge equals the whole scan; repaired, each copy gets the real name
+/// of its source.
+#[cfg(unix)]
+#[test]
+fn names_that_are_not_utf8_are_three_rows_in_one_shard_each_and_copied_by_their_names() {
+    use std::os::unix::ffi::OsStrExt;
+    let tree = Tree::new(&[]);
+    let name = |b: &[u8]| PathBuf::from(std::ffi::OsStr::from_bytes(b));
+    tree.write(name(b"in/bad\xff.obj"), INSIDE_OUT.as_bytes());
+    tree.write(name(b"in/bad\xfe.obj"), INSIDE_OUT.as_bytes());
+    tree.write("in/bad\u{fffd}.obj", TETRA.as_bytes());
+    let run = meshvet(tree.path(), &["scan", "in", "--csv", "whole.csv"]);
+    let whole = std::fs::read_to_string(tree.path().join("whole.csv")).unwrap();
+    let got: Vec<(String, String)> = rows(&whole)
+        .into_iter()
+        .map(|r| (r[0].clone(), r[column("status")].clone()))
+        .collect();
+    let want = [
+        ("bad\\xFE.obj", "fail"),
+        ("bad\\xFF.obj", "fail"),
+        ("bad\u{fffd}.obj", "pass"),
+    ];
+    let want: Vec<(String, String)> = want
+        .iter()
+        .map(|(p, s)| (p.to_string(), s.to_string()))
+        .collect();
+    assert_eq!(got, want, "{}", run.stderr);
+
+    for k in 1..=3 {
+        let shard = format!("{k}/3");
+        let csv = format!("shard{k}.csv");
+        let run = meshvet(
+            tree.path(),
+            &["scan", "in", "--shard", &shard, "--csv", &csv],
+        );
+        assert!(run.code <= 1, "{}", run.stderr);
+    }
+    let merged = meshvet(
+        tree.path(),
+        &[
+            "merge",
+            "shard1.csv",
+            "shard2.csv",
+            "shard3.csv",
+            "--csv",
+            "merged.csv",
+        ],
+    );
+    assert_eq!(merged.code, 0, "a path in two shards: {}", merged.stderr);
+    let merged = std::fs::read_to_string(tree.path().join("merged.csv")).unwrap();
+    assert_eq!(without_millis(&merged), without_millis(&whole));
+
+    let run = meshvet(
+        tree.path(),
+        &["scan", "in", "--repair-dir", "fixed", "--csv", "-"],
+    );
+    let copies: Vec<String> = rows(&run.stdout)
+        .into_iter()
+        .map(|r| r[column("repaired_path")].clone())
+        .collect();
+    assert_eq!(copies, ["fixed/bad\\xFE.obj", "fixed/bad\\xFF.obj", ""]);
+    let mut written: Vec<Vec<u8>> = std::fs::read_dir(tree.path().join("fixed"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().as_bytes().to_vec())
+        .collect();
+    written.sort();
+    assert_eq!(written, [b"bad\xfe.obj".to_vec(), b"bad\xff.obj".to_vec()]);
+}
+
+/// The same file given twice, as part of a folder and by another spelling (absolute, through
+/// `..`): one row, under the spelling reached first.
+#[test]
+fn a_file_given_twice_by_two_spellings_is_one_row() {
+    let tree = Tree::new(&[("models/a.obj", TETRA), ("models/b.obj", TRIANGLE)]);
+    let absolute = tree.path().join("models/a.obj");
+    let run = meshvet(
+        tree.path(),
+        &[
+            "scan",
+            "--csv",
+            "-",
+            "models",
+            absolute.to_str().unwrap(),
+            "models/../models/b.obj",
+        ],
+    );
+    let paths: Vec<String> = rows(&run.stdout)
+        .into_iter()
+        .map(|r| r[0].clone())
+        .collect();
+    assert_eq!(paths, ["models/a.obj", "models/b.obj"], "{}", run.stderr);
+    assert!(run.stderr.contains("2 meshes"), "{}", run.stderr);
 }

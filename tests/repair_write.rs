@@ -1524,7 +1524,7 @@ fn repair_crate_with(
     let mut judged = judged_meshes(&meshes, settings);
     let repaired = meshvet::copies::repair_file(
         &out,
-        &source.display,
+        &source.report_path,
         &source.path,
         Format::Obj,
         &c,
@@ -1646,7 +1646,7 @@ fn the_real_planner_puts_the_copy_and_its_side_files_in_place() {
     let mut judged = judged_meshes(&meshes, &settings);
     let repaired = meshvet::copies::repair_file(
         &out,
-        &source.display,
+        &source.report_path,
         &source.path,
         Format::Obj,
         &c,
