@@ -13,7 +13,7 @@
 //! `a/../a/b.obj`, a link named on the command line) is listed once, under the spelling reached
 //! first; it is told by its real path (the walked folder's canonical path joined with the path
 //! below it, a named file's canonical path), so two hard links to one file are two names, both
-//! listed.
+//! listed. A folder PATH that cannot be read is listed as an error entry under PATH as written.
 //!
 //! Names that are not UTF-8 are kept (the file is read by its real name, and a repaired copy gets
 //! that name) and shown in the report path with each byte that is not UTF-8 as `\xHH` (two
@@ -278,13 +278,21 @@ fn walk_folder(folder: &Folder<'_>, filter: &Filter, seen: &mut Seen, sources: &
                 if !seen.first(|| folder.real.join(&rel)) {
                     continue;
                 }
-                let report_path = prefix.join(&rel);
+                let mut report_path = prefix.join(&rel);
+                let mut display = slashed(&report_path);
+                if display.is_empty() {
+                    // The folder given itself (one PATH): named as written, never an empty path.
+                    report_path = root.to_owned();
+                    display = Some(slashed(root))
+                        .filter(|d| !d.is_empty())
+                        .unwrap_or_else(|| ".".into());
+                }
                 let why = e
                     .io_error()
                     .map_or_else(|| e.to_string(), |io| io.to_string());
                 sources.push(Source {
                     format: Format::of_path(&path),
-                    display: slashed(&report_path),
+                    display,
                     report_path,
                     path,
                     root: shared_root.clone(),

@@ -1335,3 +1335,51 @@ fn a_file_given_twice_by_two_spellings_is_one_row() {
     assert_eq!(paths, ["models/a.obj", "models/b.obj"], "{}", run.stderr);
     assert!(run.stderr.contains("2 meshes"), "{}", run.stderr);
 }
+
+/// A folder given that cannot be read is an error row named as the folder was given (not an
+/// empty path), whose message says what to do. Run as another user when run as root (for root
+/// every folder can be read).
+#[cfg(unix)]
+#[test]
+fn an_unreadable_folder_given_is_a_row_named_by_it() {
+    use std::os::unix::fs::PermissionsExt;
+    let tree = Tree::new(&[("tree/a.obj", TETRA)]);
+    let as_root = unsafe { libc::geteuid() } == 0;
+    let mut command = if as_root {
+        let found = Command::new("setpriv").arg("--version").output();
+        if !found.is_ok_and(|o| o.status.success()) {
+            eprintln!("run as root without setpriv: skipped");
+            return;
+        }
+        let nobody = Some(65534);
+        std::os::unix::fs::chown(tree.path().join("tree"), nobody, nobody).unwrap();
+        let open = std::fs::Permissions::from_mode(0o755);
+        std::fs::set_permissions(tree.path(), open).unwrap();
+        let mut command = Command::new("setpriv");
+        command.args(["--reuid=65534", "--regid=65534", "--clear-groups"]);
+        command.arg(env!("CARGO_BIN_EXE_meshvet"));
+        command
+    } else {
+        Command::new(env!("CARGO_BIN_EXE_meshvet"))
+    };
+    let closed = std::fs::Permissions::from_mode(0o000);
+    std::fs::set_permissions(tree.path().join("tree"), closed).unwrap();
+    let out = command
+        .args(["scan", "./tree/", "--csv", "-"])
+        .current_dir(tree.path())
+        .output()
+        .unwrap();
+    let open = std::fs::Permissions::from_mode(0o755);
+    std::fs::set_permissions(tree.path().join("tree"), open).unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    let rows = rows(&stdout);
+    assert_eq!(rows.len(), 1, "{stdout}");
+    assert_eq!(rows[0][0], "tree", "{stdout}");
+    assert_eq!(rows[0][column("status")], "error");
+    assert!(
+        rows[0][column("message")].contains("check its permissions"),
+        "{stdout}"
+    );
+}
