@@ -493,6 +493,30 @@ fn the_cache_gives_the_same_csv_and_survives_corrupt_entries() {
 
 /// Shards on one machine share a cache folder: each run writes a pack of its own while the others
 /// read theirs, none removes a pack another has open, and a later whole scan reuses every entry.
+/// A rebuilt meshvet of the same version (a copy of the executable with another modification
+/// time stands in for it) reads every file again instead of reusing the rows the build before it
+/// judged; the same build reuses them.
+#[test]
+fn a_rebuilt_meshvet_does_not_reuse_the_rows_of_the_build_before() {
+    let dir = scan_tree();
+    let exe = dir.path().join("meshvet-build");
+    std::fs::copy(env!("CARGO_BIN_EXE_meshvet"), &exe).unwrap();
+    let exe = exe.to_str().unwrap();
+    let args = ["scan", "--cache", "cache", "--csv", "-", "a", "b", "c"];
+    let said = |run: &Run, text: &str| {
+        assert!(run.stderr.contains(text), "{text}: {}", run.stderr);
+    };
+    // Error rows are never stored: garbage.stl is read every time.
+    said(&run(exe, dir.path(), &args), "0 files reused, 6 read");
+    said(&run(exe, dir.path(), &args), "5 files reused, 1 read");
+    let later = std::time::SystemTime::now() + std::time::Duration::from_secs(3600);
+    let file = std::fs::File::options().write(true).open(exe).unwrap();
+    file.set_modified(later).unwrap();
+    drop(file);
+    said(&run(exe, dir.path(), &args), "0 files reused, 6 read");
+    said(&run(exe, dir.path(), &args), "5 files reused, 1 read");
+}
+
 #[test]
 fn shards_running_at_once_share_one_cache() {
     let dir = tree(&[]);

@@ -41,8 +41,66 @@ pub(super) fn settings_hash(settings: &Settings) -> blake3::Hash {
     let mut hasher = blake3::Hasher::new();
     field(&mut hasher, HEADER);
     field(&mut hasher, env!("CARGO_PKG_VERSION").as_bytes());
+    // The build too: a binary rebuilt from changed code keeps the version but may judge meshes
+    // otherwise, and must not reuse the rows of the one before.
+    field(&mut hasher, build_identity().as_bytes());
     // The columns, so a build whose rows have other cells never decodes this one's.
     field(&mut hasher, crate::report::COLUMNS.join(",").as_bytes());
     field(&mut hasher, format!("{relevant:?}").as_bytes());
     hasher.finalize()
+}
+
+/// What tells this build of meshvet from another of the same version: the size and modification
+/// time of the running executable (a rebuild or a reinstall changes them, so its first scan reads
+/// every file again). Where the executable cannot be found, an identity of this process alone,
+/// so that no entry is reused across runs rather than one reused wrongly.
+fn build_identity() -> &'static str {
+    static IDENTITY: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    IDENTITY.get_or_init(|| {
+        std::env::current_exe()
+            .ok()
+            .and_then(|exe| file_identity(&exe))
+            .unwrap_or_else(|| {
+                let now = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_nanos());
+                format!("process {} {now}", std::process::id())
+            })
+    })
+}
+
+/// The size and modification time of the file at `path` (links followed).
+fn file_identity(path: &Path) -> Option<String> {
+    let meta = std::fs::metadata(path).ok()?;
+    let modified = meta
+        .modified()
+        .ok()?
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()?;
+    Some(format!("{} {}", meta.len(), modified.as_nanos()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rebuilt executable (another size, or another modification time) has another identity,
+    /// the same file the same one.
+    #[test]
+    fn a_rebuilt_executable_has_another_identity() {
+        let dir = tempfile::tempdir().unwrap();
+        let exe = dir.path().join("meshvet");
+        std::fs::write(&exe, b"build one").unwrap();
+        let first = file_identity(&exe).unwrap();
+        assert_eq!(file_identity(&exe).unwrap(), first);
+        std::fs::write(&exe, b"build two, longer").unwrap();
+        let second = file_identity(&exe).unwrap();
+        assert_ne!(second, first);
+        let file = std::fs::File::options().write(true).open(&exe).unwrap();
+        let later = std::time::SystemTime::now() + std::time::Duration::from_secs(3600);
+        file.set_modified(later).unwrap();
+        assert_ne!(file_identity(&exe).unwrap(), second);
+        assert_eq!(build_identity(), build_identity());
+        assert!(file_identity(&dir.path().join("missing")).is_none());
+    }
 }

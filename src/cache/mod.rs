@@ -3,7 +3,8 @@
 //! their index (`pack`), an entry's body and codec (`entry`), file stamps (`stamp`); this module
 //! opens, looks up, appends and compacts.
 //!
-//! **Key.** blake3 over: the cache format, meshvet's version, the report's columns, a hash of the
+//! **Key.** blake3 over: the cache format, meshvet's version and build (the executable's size and
+//! modification time, so a rebuild never reuses rows), the report's columns, a hash of the
 //! effective settings (every setting that can change a row: severities, weld tolerance, limits; not
 //! `jobs` or the include/exclude globs, which only choose files), the file's report path, and the
 //! bytes of the file and of everything its rows depend on: for `.obj`, every `mtllib` it names; for
