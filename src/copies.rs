@@ -8,7 +8,10 @@
 //! images) are first written to a private staging folder next to the copy's place, read back and
 //! judged there, and only then renamed into place. So a copy that cannot be written, read back
 //! or judged leaves nothing behind: no copy, no side files, and a `repair failed: ... - no copy
-//! written, the source is untouched` note. A panic in the planning, the writer or the re-check is
+//! written, the source is untouched` note. Names in the final folder are claimed first
+//! ([`write::names`]): the copy's own path, and each side file's name for its bytes, so copies
+//! made at the same time never put different files under one name; a side file is never moved
+//! over a different file. A panic in the planning, the writer or the re-check is
 //! caught here and becomes the same note. A planner that fails on one mesh costs that mesh's repair
 //! only; the file's other meshes are still repaired.
 
@@ -17,6 +20,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::caught;
 use crate::config::Settings;
+use crate::formats::write::names::{Claims, Refused};
 use crate::formats::{self, write, Format, ReadContext, Retained};
 use crate::judge::{judge, Judged};
 use crate::mesh::Mesh;
@@ -255,6 +259,9 @@ fn stage_and_check(
         }
     }
     let folder = out.parent().unwrap_or(dir);
+    // Dropped last: the names stay claimed until the files are in place or removed.
+    let claims = Claims::new(folder);
+    claims.copy(out).map_err(|e| e.to_string())?;
     let mut stage = Stage::new(folder)?;
     let name = out
         .file_name()
@@ -265,7 +272,7 @@ fn stage_and_check(
         (Some(r), [mesh]) => Some((mesh, r)),
         _ => None,
     };
-    let written = write::write_copy(source, format, plans, &staged, context, retained)
+    let written = write::write_claimed(source, format, plans, &staged, context, retained, &claims)
         .map_err(|e| e.to_string())?;
     // Read the copy back and judge it as the scan judges a file.
     let copy_context = ReadContext {
@@ -292,7 +299,7 @@ fn stage_and_check(
             })
         })
         .collect();
-    stage.commit(&written.files, folder)?;
+    stage.commit(&written.files, folder, &claims)?;
     Ok(Checked {
         after,
         notes: written.notes,
@@ -340,10 +347,13 @@ impl Stage {
 
     /// Moves `files` (the copy first, then its side files, all inside the stage) to the same
     /// places under `folder`: side files first, the copy last, so a copy never refers to a side
-    /// file that is not there yet. A side file whose place already holds the same bytes (the
-    /// same library another copy brought, or the source's own file) is left alone. If a move
-    /// fails, the side files this call moved in are removed again, unless they were there before.
-    fn commit(&mut self, files: &[PathBuf], folder: &Path) -> Result<(), String> {
+    /// file that is not there yet. A side file never replaces a file: its place was claimed for its
+    /// bytes (by the writer, else here), and a place that already holds the same bytes (the same
+    /// library another copy brought, the source's own file) is left alone, while a place holding
+    /// anything else fails the commit. The copy replaces an earlier copy at its place. If a move
+    /// fails, the side files this call moved in are removed again, unless another copy claims or
+    /// names them.
+    fn commit(&mut self, files: &[PathBuf], folder: &Path, claims: &Claims) -> Result<(), String> {
         let places: Vec<(PathBuf, PathBuf)> = files
             .iter()
             .map(|f| {
@@ -360,7 +370,7 @@ impl Stage {
         let mut moved: Vec<PathBuf> = Vec::new();
         let undo = |moved: &[PathBuf]| {
             for m in moved {
-                let _ = std::fs::remove_file(m);
+                claims.undo(m);
             }
         };
         let order = (1..places.len()).chain(0..places.len().min(1));
@@ -370,27 +380,95 @@ impl Stage {
             if side && !from.is_file() {
                 continue; // written twice under one name (listed twice)
             }
-            let existed = to.exists();
-            if side && existed && same_bytes(to, from) {
-                continue;
-            }
-            let result = to
-                .parent()
-                .map_or(Ok(()), std::fs::create_dir_all)
-                .and_then(|()| std::fs::rename(from, to));
-            if let Err(e) = result {
-                undo(&moved);
-                return Err(format!(
-                    "cannot move the copy into place at {}: {e}",
-                    to.display()
-                ));
-            }
-            if side && !existed {
-                moved.push(to.clone());
+            let result = if side {
+                place_side(from, to, claims)
+            } else {
+                to.parent()
+                    .map_or(Ok(()), std::fs::create_dir_all)
+                    .and_then(|()| std::fs::rename(from, to))
+                    .map(|()| false)
+                    .map_err(|e| {
+                        format!("cannot move the copy into place at {}: {e}", to.display())
+                    })
+            };
+            match result {
+                Ok(true) => moved.push(to.clone()),
+                Ok(false) => {}
+                Err(e) => {
+                    undo(&moved);
+                    return Err(e);
+                }
             }
         }
+        claims.committed();
         self.committed = true;
         Ok(())
+    }
+}
+
+/// Moves the staged side file `from` to `to`, never over another file: `Ok(true)` when moved,
+/// `Ok(false)` when `to` already holds the same bytes.
+fn place_side(from: &Path, to: &Path, claims: &Claims) -> Result<bool, String> {
+    let name = to
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let taken = |how: &str| {
+        format!(
+            "cannot put {name} beside the copy: {} {how} - remove it or repair into an empty folder",
+            to.display()
+        )
+    };
+    // A writer that cannot rename what it brings (an OBJ's libraries keep their names) claims
+    // nothing: the place is claimed here, for the staged bytes.
+    if !claims.holds(to) {
+        let bytes = std::fs::read(from)
+            .map_err(|e| format!("cannot read the staged {}: {e}", from.display()))?;
+        match claims.exact(to, &bytes) {
+            Ok(()) => {}
+            Err(Refused::OnDisk) => return Err(taken("already holds a different file")),
+            Err(Refused::Claimed) => {
+                return Err(taken(
+                    "is where another copy made in this scan puts a different file of that name",
+                ))
+            }
+        }
+    }
+    if let Some(parent) = to.parent() {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+    }
+    match move_new(from, to) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            if same_bytes(to, from) {
+                Ok(false)
+            } else {
+                // Another program wrote it since the name was claimed.
+                Err(taken("now holds a different file"))
+            }
+        }
+        Err(e) => Err(format!(
+            "cannot move {name} into place at {}: {e}",
+            to.display()
+        )),
+    }
+}
+
+/// Renames `from` to `to` unless `to` exists (`AlreadyExists` then): a hard link, which fails
+/// rather than replace, then the staged name removed. Where the file system has no hard links,
+/// a check then a rename (a file that appears between the two is the only one replaced).
+fn move_new(from: &Path, to: &Path) -> std::io::Result<()> {
+    match std::fs::hard_link(from, to) {
+        Ok(()) => {
+            let _ = std::fs::remove_file(from);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(e),
+        Err(_) if std::fs::symlink_metadata(to).is_ok() => {
+            Err(std::io::Error::from(std::io::ErrorKind::AlreadyExists))
+        }
+        Err(_) => std::fs::rename(from, to),
     }
 }
 

@@ -897,3 +897,108 @@ fn every_corpus_mesh_repairs_in_one_pass() {
         "repairing the copies changed them again: {rewritten:?}"
     );
 }
+
+/// Eight glTFs in `models/`, `m0.gltf` .. `m7.gltf`, each naming its own `../lodK/mesh.bin` (as
+/// many bytes each): a tetrahedron on the axes `K + 1` long, read by mesh `broken` (one face
+/// stored backwards) and mesh `clean`, repaired by one parallel scan into one folder. Every
+/// buffer named `mesh.bin` wants the same place beside the copies; each copy must get a name of
+/// its own: the copy's `clean` mesh, which still reads that buffer, and its repaired `broken` one
+/// pass when scanned again, with volume `(K + 1)^3 / 6`.
+#[test]
+fn parallel_gltf_copies_in_one_folder_keep_their_own_buffers() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    std::fs::create_dir_all(tree.join("models")).unwrap();
+    for k in 0..8 {
+        let s = (k + 1) as f32;
+        let mut bin = Vec::new();
+        for p in [[0.0, 0.0, 0.0], [s, 0.0, 0.0], [0.0, s, 0.0], [0.0, 0.0, s]] {
+            for x in p {
+                bin.extend_from_slice(&f32::to_le_bytes(x));
+            }
+        }
+        // Mesh `broken`: outward but the last face, stored backwards; mesh `clean`: outward.
+        for i in [
+            0u16, 2, 1, 0, 1, 3, 1, 2, 3, 0, 2, 3, 0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2,
+        ] {
+            bin.extend_from_slice(&i.to_le_bytes());
+        }
+        let doc = json!({
+            "asset": {"version": "2.0"},
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [
+                {"name": "broken", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]},
+                {"name": "clean", "primitives": [{"attributes": {"POSITION": 0}, "indices": 2}]}
+            ],
+            "buffers": [{"uri": format!("../lod{k}/mesh.bin"), "byteLength": bin.len()}],
+            "bufferViews": [
+                {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                {"buffer": 0, "byteOffset": 48, "byteLength": 24},
+                {"buffer": 0, "byteOffset": 72, "byteLength": 24}
+            ],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [s, s, s]},
+                {"bufferView": 1, "componentType": 5123, "count": 12, "type": "SCALAR"},
+                {"bufferView": 2, "componentType": 5123, "count": 12, "type": "SCALAR"}
+            ]
+        });
+        std::fs::create_dir_all(tree.join(format!("lod{k}"))).unwrap();
+        std::fs::write(tree.join(format!("lod{k}/mesh.bin")), &bin).unwrap();
+        std::fs::write(
+            tree.join(format!("models/m{k}.gltf")),
+            serde_json::to_vec(&doc).unwrap(),
+        )
+        .unwrap();
+    }
+    let before = hash_tree(&tree);
+    scan(
+        dir.path(),
+        &[
+            "tree",
+            "--repair-dir",
+            "out",
+            "--csv",
+            "r.csv",
+            "--jobs",
+            "8",
+        ],
+    );
+    assert_eq!(before, hash_tree(&tree), "the scanned tree changed");
+    let rows = csv_rows(&dir.path().join("r.csv"));
+    scan(dir.path(), &["out", "--csv", "again.csv"]);
+    let again = csv_rows(&dir.path().join("again.csv"));
+    let mut buffers = BTreeSet::new();
+    for k in 0..8 {
+        let path = format!("models/m{k}.gltf");
+        let key = |mesh: &str| (path.clone(), mesh.to_owned());
+        let row = &rows[&key("broken")];
+        assert_eq!(
+            (row["repairs"].as_str(), row["status_after"].as_str()),
+            ("orient-faces:1", "pass"),
+            "{row:?}"
+        );
+        for mesh in ["broken", "clean"] {
+            let copy = &again[&key(mesh)];
+            assert_eq!(copy["status"], "pass", "{copy:?}");
+            let volume: f64 = copy["volume"].parse().unwrap();
+            let expected = ((k + 1) as f64).powi(3) / 6.0;
+            assert!(
+                (volume - expected).abs() < 1e-9 * expected,
+                "{path} {mesh}: the copy's volume is {volume}, its source's {expected}"
+            );
+        }
+        let doc: Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("out").join(&path)).unwrap())
+                .unwrap();
+        let uri = doc["buffers"][0]["uri"].as_str().unwrap().to_owned();
+        assert_eq!(
+            std::fs::read(dir.path().join("out/models").join(&uri)).unwrap(),
+            std::fs::read(tree.join(format!("lod{k}/mesh.bin"))).unwrap(),
+            "{path} names {uri}"
+        );
+        buffers.insert(uri);
+    }
+    assert_eq!(buffers.len(), 8, "{buffers:?}");
+}

@@ -1678,3 +1678,137 @@ fn the_real_planner_puts_the_copy_and_its_side_files_in_place() {
     names.sort();
     assert_eq!(names, ["crate.mtl", "crate.obj", "crate.png"]);
 }
+
+// ---- files beside the copies of one folder ----------------------------------------------------
+
+/// A glTF of two tetrahedra on the axes, `scale` long, whose buffer is the file `uri`: mesh 0 and
+/// mesh 1 (placed 3 along x by its node) both read the positions and indices of that buffer. The
+/// document and the buffer's bytes (positions, then indices).
+fn tetra_gltf(uri: &str, scale: f32) -> (Value, Vec<u8>) {
+    let mut bin = Vec::new();
+    for p in [
+        [0.0, 0.0, 0.0],
+        [scale, 0.0, 0.0],
+        [0.0, scale, 0.0],
+        [0.0, 0.0, scale],
+    ] {
+        for x in p {
+            bin.extend_from_slice(&f32::to_le_bytes(x));
+        }
+    }
+    for i in [0u16, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    let primitive = json!({"attributes": {"POSITION": 0}, "indices": 1});
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1, "translation": [3, 0, 0]}],
+        "meshes": [{"primitives": [primitive]}, {"primitives": [primitive]}],
+        "buffers": [{"uri": uri, "byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 24}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [0, 0, 0], "max": [scale, scale, scale]},
+            {"bufferView": 1, "componentType": 5123, "count": 12, "type": "SCALAR"}
+        ]
+    });
+    (doc, bin)
+}
+
+/// `models/a.gltf` names `../lod0/mesh.bin`, `models/b.gltf` `../lod1/mesh.bin` (as many bytes,
+/// a tetrahedron 5 long instead of 1), `models/c.gltf` `../lod0/mesh.bin` again; each copy
+/// rewrites mesh 0 (into a buffer of its own) and leaves mesh 1 reading the source's buffer. The
+/// copies go to one folder: a's buffer is copied as `mesh.bin`; b's cannot be (a different
+/// `mesh.bin` is there now), so it is `mesh-1.bin` and b's copy names that; c's holds the same
+/// bytes as a's and shares `mesh.bin`. Each copy's mesh 1 is still its own source's tetrahedron.
+#[test]
+fn gltf_copies_in_one_folder_keep_their_own_buffers() {
+    let (_dir, src, out) = dirs();
+    for (name, lod, scale) in [("a", "lod0", 1.0), ("b", "lod1", 5.0), ("c", "lod0", 1.0)] {
+        let (doc, bin) = tetra_gltf(&format!("../{lod}/mesh.bin"), scale);
+        std::fs::create_dir_all(src.join("models")).unwrap();
+        std::fs::create_dir_all(src.join(lod)).unwrap();
+        std::fs::write(src.join(lod).join("mesh.bin"), &bin).unwrap();
+        std::fs::write(
+            src.join("models").join(format!("{name}.gltf")),
+            serde_json::to_vec(&doc).unwrap(),
+        )
+        .unwrap();
+    }
+    let c = cx(&src);
+    for name in ["a", "b", "c"] {
+        let source = src.join("models").join(format!("{name}.gltf"));
+        let meshes = read(&source, Format::Gltf, &c).unwrap();
+        let plans = vec![Some(identity(&meshes[0])), None];
+        let copy = out.join("models").join(format!("{name}.gltf"));
+        write_repaired(&source, Format::Gltf, &plans, &copy, &c).unwrap();
+    }
+    let uri = |name: &str| {
+        let copy = out.join("models").join(format!("{name}.gltf"));
+        document(&std::fs::read(copy).unwrap())["buffers"][0]["uri"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    };
+    assert_eq!(
+        [uri("a"), uri("b"), uri("c")],
+        ["mesh.bin", "mesh-1.bin", "mesh.bin"]
+    );
+    assert_eq!(
+        std::fs::read(out.join("models/mesh.bin")).unwrap(),
+        std::fs::read(src.join("lod0/mesh.bin")).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(out.join("models/mesh-1.bin")).unwrap(),
+        std::fs::read(src.join("lod1/mesh.bin")).unwrap()
+    );
+    for (name, scale) in [("a", 1.0), ("b", 5.0), ("c", 1.0)] {
+        let copy = out.join("models").join(format!("{name}.gltf"));
+        let meshes = read(&copy, Format::Gltf, &cx(&out)).unwrap();
+        let far = meshes[1].positions.iter().map(|p| p[1]).fold(0.0, f64::max);
+        assert_eq!(far, scale, "{name}: mesh 1 reads its own source's buffer");
+    }
+}
+
+/// A repair never moves a side file over a different file: the output folder already holds a
+/// `props/crate.mtl` of other bytes (left by an earlier run, or another program's), so the
+/// crate's copy, which brings its library under that fixed name, fails with a note naming the
+/// file and what to do; that file keeps its bytes and no copy is put beside it.
+#[test]
+fn a_side_file_never_replaces_a_different_file() {
+    let (_dir, src, out) = dirs();
+    let settings = meshvet::config::Settings::default();
+    let (source, meshes, _) = damaged_crate(&src, &settings);
+    std::fs::create_dir_all(out.join("props")).unwrap();
+    std::fs::write(out.join("props/crate.mtl"), "newmtl other\n").unwrap();
+    let mut judged = judged_meshes(&meshes, &settings);
+    let repaired = meshvet::copies::repair_file(
+        &out,
+        &source.display,
+        &source.path,
+        Format::Obj,
+        &cx(&src),
+        &meshes,
+        &mut judged,
+        None,
+        &settings,
+        &meshvet::repair::plan_with,
+    );
+    assert_eq!(repaired[0].copy, None);
+    let mtl = out.join("props/crate.mtl");
+    assert_eq!(
+        repaired[0].notes,
+        [format!(
+            "repair failed: cannot put crate.mtl beside the copy: {} already holds a different \
+             file - remove it or repair into an empty folder - no copy written, the source is \
+             untouched",
+            mtl.display()
+        )]
+    );
+    assert_eq!(std::fs::read_to_string(&mtl).unwrap(), "newmtl other\n");
+    assert_eq!(files_under(&out), [mtl]);
+}

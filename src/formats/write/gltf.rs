@@ -10,7 +10,9 @@
 //!
 //! New data goes into one new buffer: appended to the BIN chunk of a GLB, or a `.bin` beside a
 //! `.gltf` copy (a `data:` URI when the source embeds all its buffers). External buffers and
-//! images the copy refers to are copied next to it, so the copy opens where it is written.
+//! images the copy refers to are copied next to it, so the copy opens where it is written, under
+//! names claimed in the copy's final folder ([`super::names`]): a file of the same name but other
+//! bytes there, or brought by another copy, makes it `name-1.ext`.
 //! Old accessors stay in the document unused.
 
 use std::borrow::Cow;
@@ -26,6 +28,7 @@ use gltf::json::Value;
 use rustc_hash::FxHashMap;
 use serde_json::json;
 
+use super::names::Claims;
 use super::{normal_sums, write_atomic, Job, WriteError, Written};
 use crate::formats::gltf::accessor::{type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
@@ -36,13 +39,14 @@ use crate::repair::Plan;
 
 /// Writes the copy and, beside it, the buffers and images it names.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    let (source, plans, out, cx) = (job.source, job.plans, job.out, job.cx);
-    let side =
-        crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
+    let (source, plans, out, cx, claims) = (job.source, job.plans, job.out, job.cx, job.claims);
+    let side = crate::caught(|| write_unguarded(source, plans, out, cx, claims)).unwrap_or_else(
+        |panic| {
             Err(WriteError::new(format!(
                 "the glTF writer crashed on this file ({panic}): please report it"
             )))
-        })?;
+        },
+    )?;
     Ok(job.written(side, Vec::new()))
 }
 
@@ -55,6 +59,7 @@ fn write_unguarded(
     plans: &[Option<Plan>],
     out: &Path,
     cx: &ReadContext,
+    claims: &Claims,
 ) -> Result<Vec<PathBuf>, WriteError> {
     let bytes = std::fs::read(source)?;
     let container = container::split(&bytes)?;
@@ -190,9 +195,8 @@ fn write_unguarded(
     extend(&mut doc, "bufferViews", views);
     extend(&mut doc, "accessors", accessors);
     let mut written = Vec::new();
-    let mut taken = FxHashMap::default();
     if let Some(location) = &location {
-        written.extend(copy_external(&mut doc, location, out, &mut taken)?);
+        written.extend(copy_external(&mut doc, location, out, claims)?);
     }
     if glb {
         if !new.is_empty() {
@@ -216,16 +220,14 @@ fn write_unguarded(
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            let mut name = format!("{stem}.repaired.bin");
-            let mut n = 1;
-            while taken.contains_key(&name) {
-                name = format!("{stem}.repaired-{n}.bin");
-                n += 1;
-            }
+            let wanted = format!("{stem}.repaired.bin");
+            let name = claims
+                .side(Path::new(&wanted), &new, true)
+                .map_err(|_| no_free_name(&wanted, claims))?;
             let path = out.with_file_name(&name);
             write_atomic(&path, &new)?;
             written.push(path);
-            encode_uri(&name)
+            encode_uri(&name.to_string_lossy())
         };
         extend(
             &mut doc,
@@ -842,15 +844,23 @@ struct ValuesInfo {
 }
 
 /// Copies the external buffers and images the document refers to (relative files inside the
-/// scanned tree) next to the copy, and points their URIs there. Names that clash get a number.
+/// scanned tree) next to the copy, and points their URIs there. A file down from the source's
+/// folder keeps its place and URI when that place is free for its bytes in the copy's final folder;
+/// any other goes beside the copy under its file name, or the first free numbered name
+/// (`mesh-1.bin`) when another file has that name there or another copy made meanwhile brings
+/// one ([`Claims::side`]).
 fn copy_external(
     doc: &mut Value,
     location: &Location,
     out: &Path,
-    taken: &mut FxHashMap<String, PathBuf>,
+    claims: &Claims,
 ) -> Result<Vec<PathBuf>, WriteError> {
     let folder = out.parent().unwrap_or(Path::new(""));
     let mut written = Vec::new();
+    // Per source file named: its URI in the copy (`None`: as it was).
+    let mut named: FxHashMap<PathBuf, Option<String>> = FxHashMap::default();
+    // Places written (two files of the same bytes share a name).
+    let mut placed: rustc_hash::FxHashSet<PathBuf> = Default::default();
     for key in ["buffers", "images"] {
         let Some(items) = doc.get_mut(key).and_then(Value::as_array_mut) else {
             continue;
@@ -869,21 +879,27 @@ fn copy_external(
             let Ok(real) = buffers::resolve(uri, location) else {
                 continue;
             };
+            if let Some(new) = named.get(&real) {
+                if let Some(new) = new {
+                    item["uri"] = json!(new);
+                }
+                continue;
+            }
             // A path down from the source's folder keeps its place (and its URI); one that climbs
             // (`../buffers/x.bin`) is copied beside the copy under its file name.
             let below = buffers::check(uri, location)
                 .ok()
                 .and_then(|p| p.strip_prefix(&location.folder).ok().map(Path::to_path_buf))
                 .filter(|_| !uri.contains(".."));
+            let bytes = super::read_side(&real)?;
             if let Some(rel) = below {
-                let to = folder.join(&rel);
-                let key = rel.to_string_lossy().replace('\\', "/");
-                if taken.get(&key).is_none_or(|p| *p == real) {
-                    if let std::collections::hash_map::Entry::Vacant(e) = taken.entry(key) {
-                        e.insert(real.clone());
-                        super::copy_beside(&real, &to)?;
+                if claims.side(&rel, &bytes, false).is_ok() {
+                    let to = folder.join(&rel);
+                    if placed.insert(to.clone()) {
+                        super::put_beside(&real, &bytes, &to)?;
                         written.push(to);
                     }
+                    named.insert(real, None);
                     continue;
                 }
             }
@@ -891,26 +907,29 @@ fn copy_external(
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            let (stem, ext) = match file.rsplit_once('.') {
-                Some((s, e)) => (s.to_string(), format!(".{e}")),
-                None => (file.clone(), String::new()),
-            };
-            let mut name = file.clone();
-            let mut n = 1;
-            while taken.get(&name).is_some_and(|p| *p != real) {
-                name = format!("{stem}-{n}{ext}");
-                n += 1;
-            }
-            if !taken.contains_key(&name) {
-                taken.insert(name.clone(), real.clone());
-                let to = folder.join(&name);
-                super::copy_beside(&real, &to)?;
+            let name = claims
+                .side(Path::new(&file), &bytes, true)
+                .map_err(|_| no_free_name(&file, claims))?;
+            let to = folder.join(&name);
+            if placed.insert(to.clone()) {
+                super::put_beside(&real, &bytes, &to)?;
                 written.push(to);
             }
-            item["uri"] = json!(encode_uri(&name));
+            let uri = encode_uri(&name.to_string_lossy());
+            item["uri"] = json!(uri);
+            named.insert(real, Some(uri));
         }
     }
     Ok(written)
+}
+
+/// Why a file the copy brings has no name beside it.
+fn no_free_name(file: &str, claims: &Claims) -> WriteError {
+    bad(format!(
+        "no free name for {file} in {}: that name and its numbered variants are taken by other \
+         files (or the folder cannot be read) - repair into an empty folder",
+        claims.folder().display()
+    ))
 }
 
 /// A file name as a URI reference (RFC 3986 unreserved characters kept, the rest escaped).

@@ -10,6 +10,7 @@
 //! here: which source polygons survive whole, vertex renumbering and the normal check.
 
 pub(super) mod gltf;
+pub mod names;
 pub(super) mod obj;
 pub(super) mod off;
 pub(super) mod ply;
@@ -26,6 +27,7 @@ use crate::atomic::AtomicFile;
 use crate::geometry::polygon;
 use crate::mesh::Mesh;
 use crate::repair::Plan;
+use names::Claims;
 
 /// Why a repaired copy could not be written. The message is for a person.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -59,8 +61,10 @@ pub struct Written {
 }
 
 /// One repaired copy to write: the source file, one plan per mesh its reader returns (`None`: that
-/// mesh is left as it is), where the copy goes, the reader's context, and what the scan's read kept
-/// of the source (then the writer does not read it again).
+/// mesh is left as it is), where the copy goes, the reader's context, what the scan's read kept
+/// of the source (then the writer does not read it again), and the names claimed in the folder the
+/// copy finally goes to (a writer that brings a file beside the copy names it through
+/// [`Claims::side`], so that no other copy in that folder takes the name for other bytes).
 pub struct Job<'a> {
     pub source: &'a Path,
     pub format: Format,
@@ -68,6 +72,7 @@ pub struct Job<'a> {
     pub out: &'a Path,
     pub cx: &'a ReadContext,
     pub retained: Option<(&'a Mesh, super::Retained)>,
+    pub claims: &'a Claims,
 }
 
 impl Job<'_> {
@@ -117,6 +122,23 @@ pub fn write_copy(
     cx: &ReadContext,
     retained: Option<(&Mesh, super::Retained)>,
 ) -> Result<Written, WriteError> {
+    let folder = out.parent().unwrap_or(Path::new(""));
+    let claims = Claims::new(folder);
+    write_claimed(source, format, plans, out, cx, retained, &claims)
+}
+
+/// [`write_copy`] into a staging folder that stands for the folder the copy finally goes to:
+/// `claims` (made for that folder) names the files the copy brings beside it there, and holds
+/// those names until it is dropped, after the files are moved into place.
+pub fn write_claimed(
+    source: &Path,
+    format: Format,
+    plans: &[Option<Plan>],
+    out: &Path,
+    cx: &ReadContext,
+    retained: Option<(&Mesh, super::Retained)>,
+    claims: &Claims,
+) -> Result<Written, WriteError> {
     let same = match (source.canonicalize(), out.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
@@ -140,6 +162,7 @@ pub fn write_copy(
         out,
         cx,
         retained,
+        claims,
     })
 }
 
@@ -160,14 +183,23 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> 
 
 /// Copies `from` (a file the source refers to) to `to` atomically, unless `to` is `from` itself.
 pub(crate) fn copy_beside(from: &Path, to: &Path) -> Result<(), WriteError> {
+    let bytes = read_side(from)?;
+    put_beside(from, &bytes, to)
+}
+
+/// The bytes of `from`, a file the source refers to.
+pub(crate) fn read_side(from: &Path) -> Result<Vec<u8>, WriteError> {
+    std::fs::read(from).map_err(|e| WriteError(format!("cannot read {}: {e}", from.display())))
+}
+
+/// Writes `bytes`, read from `from`, to `to` atomically, unless `to` is `from` itself.
+pub(crate) fn put_beside(from: &Path, bytes: &[u8], to: &Path) -> Result<(), WriteError> {
     if let (Ok(a), Ok(b)) = (from.canonicalize(), to.canonicalize()) {
         if a == b {
             return Ok(());
         }
     }
-    let bytes = std::fs::read(from)
-        .map_err(|e| WriteError(format!("cannot read {}: {e}", from.display())))?;
-    write_atomic(to, &bytes)
+    write_atomic(to, bytes)
 }
 
 /// New numbers of the kept vertices (input, then new, as [`Plan::apply`] numbers them);
