@@ -1812,3 +1812,53 @@ fn a_side_file_never_replaces_a_different_file() {
     assert_eq!(std::fs::read_to_string(&mtl).unwrap(), "newmtl other\n");
     assert_eq!(files_under(&out), [mtl]);
 }
+
+/// A binary STL with bytes after its last facet (a trailing newline; padding longer than a
+/// facet) is read as binary, with a note, so its copy is binary too: the header and each facet's
+/// attribute word kept, exactly `84 + 50 n` bytes; the padding is left out, said in a note.
+#[test]
+fn padded_binary_stl_copy_stays_binary() {
+    for pad in [&b"\n"[..], &[0u8; 64][..]] {
+        let (_dir, src, out) = dirs();
+        let mut bytes = stl_binary();
+        bytes.extend_from_slice(pad);
+        std::fs::write(src.join("cube.stl"), &bytes).unwrap();
+        let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(&src))
+            .unwrap()
+            .remove(0);
+        assert!(mesh.notes[0].starts_with(&format!("{} byte(s) after the 12 triangles", pad.len())));
+        let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
+        let copy_path = out.join("cube.stl");
+        round_trip(
+            &src.join("cube.stl"),
+            Format::Stl,
+            &[Some(plan.clone())],
+            &copy_path,
+        );
+        let copy = std::fs::read(&copy_path).unwrap();
+        assert_eq!(copy.len(), 84 + 50 * 12);
+        assert_eq!(copy[..80], bytes[..80]);
+        for (i, t) in plan.triangles.iter().enumerate() {
+            let at = 84 + 50 * i + 48;
+            let attribute = u16::from_le_bytes([copy[at], copy[at + 1]]);
+            assert_eq!(attribute, t.source.map_or(0, |s| 0x8000 | s as u16));
+        }
+        let written = write_copy(
+            &src.join("cube.stl"),
+            Format::Stl,
+            &[Some(plan)],
+            &out.join("again.stl"),
+            &cx(&src),
+            None,
+        )
+        .unwrap();
+        assert_eq!(
+            written.notes,
+            [format!(
+                "the {} byte(s) after the source's binary facets (padding the reader ignored) are \
+                 not in the copy",
+                pad.len()
+            )]
+        );
+    }
+}

@@ -49,20 +49,66 @@ const HEADER: usize = 84;
 const FACET: usize = 50;
 
 fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+    match layout(bytes)? {
+        Layout::Empty => {
+            let mut mesh = Mesh::default();
+            mesh.notes.push("the file is empty".into());
+            Ok(mesh)
+        }
+        Layout::Ascii => parse_ascii(bytes, cx),
+        Layout::Binary { facets, extra: 0 } => parse_binary(bytes, facets, cx),
+        // Longer than the declared facets: exporters pad binary files (to a block size, with a
+        // trailing newline, ...). The declared facets are all there; the rest is ignored, noted.
+        Layout::Binary { facets: n, extra } => {
+            let end = bytes.len() - extra;
+            let mut mesh = parse_binary(&bytes[..end], n, cx)?;
+            let more = extra / FACET;
+            let hint = if more > 0 {
+                format!(
+                    " (room for {more} more facet(s): if the model looks incomplete, the header's \
+                     triangle count is wrong - re-export the file)"
+                )
+            } else {
+                String::new()
+            };
+            mesh.notes.push(format!(
+                "{extra} byte(s) after the {n} triangles the binary header declares were ignored{hint}"
+            ));
+            Ok(mesh)
+        }
+    }
+}
+
+/// How [`parse`] reads a file's bytes; the writer of repaired copies decides by the same rule, so
+/// a copy is written as its source was read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Layout {
+    Empty,
+    Ascii,
+    /// `facets` binary facets after the header, then `extra` bytes that are ignored (padding).
+    Binary {
+        facets: u64,
+        extra: usize,
+    },
+}
+
+/// How `bytes` are read, or why they cannot be: the detection the module comment describes.
+pub(crate) fn layout(bytes: &[u8]) -> Result<Layout, ReadError> {
     if bytes.is_empty() {
-        let mut mesh = Mesh::default();
-        mesh.notes.push("the file is empty".into());
-        return Ok(mesh);
+        return Ok(Layout::Empty);
     }
     let declared = bytes.first_chunk::<HEADER>().map(declared);
     if let Some(n) = declared {
         if HEADER as u64 + FACET as u64 * n == bytes.len() as u64 {
-            return parse_binary(bytes, n, cx);
+            return Ok(Layout::Binary {
+                facets: n,
+                extra: 0,
+            });
         }
     }
     // Binary data after a `solid` header (a binary file of the wrong size) is not ASCII STL.
     if starts_with_solid(bytes) && Binary::of(bytes).is_none() {
-        return parse_ascii(bytes, cx);
+        return Ok(Layout::Ascii);
     }
     // Binary data is binary STL, but not an image, an archive or another mesh format. A UTF-16
     // byte order mark (two bytes a binary header may start with) is said only of a file that is
@@ -89,25 +135,12 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
              it - the exporter did not fill in the triangle count: re-export the file",
             (bytes.len() - HEADER) / FACET
         ))),
-        // Longer than the declared facets: exporters pad binary files (to a block size, with a
-        // trailing newline, ...). The declared facets are all there; the rest is ignored, noted.
         Some(n) if HEADER as u64 + FACET as u64 * n < bytes.len() as u64 => {
             let end = HEADER + FACET * n as usize; // < bytes.len(), so it fits
-            let mut mesh = parse_binary(&bytes[..end], n, cx)?;
-            let extra = bytes.len() - end;
-            let more = extra / FACET;
-            let hint = if more > 0 {
-                format!(
-                    " (room for {more} more facet(s): if the model looks incomplete, the header's \
-                     triangle count is wrong - re-export the file)"
-                )
-            } else {
-                String::new()
-            };
-            mesh.notes.push(format!(
-                "{extra} byte(s) after the {n} triangles the binary header declares were ignored{hint}"
-            ));
-            Ok(mesh)
+            Ok(Layout::Binary {
+                facets: n,
+                extra: bytes.len() - end,
+            })
         }
         Some(n) => {
             let held = (bytes.len() - HEADER) / FACET;

@@ -1,5 +1,7 @@
 //! Repaired STL: binary stays binary (the 80-byte header kept, each surviving facet's attribute
-//! word kept, 0 for hole fills), ASCII stays ASCII under the first solid's name. Facet normals are
+//! word kept, 0 for hole fills), ASCII stays ASCII under the first solid's name; which one a file
+//! is, the reader decides ([`crate::formats::stl::layout`]: a padded binary file is binary, its
+//! padding left out of the copy with a note). Facet normals are
 //! recomputed from the final winding. STL stores no shared vertices, so copies and dropped
 //! vertices need nothing.
 
@@ -7,22 +9,32 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{write_atomic, Job, WriteError, Written};
+use crate::formats::stl::{layout, Layout};
 use crate::formats::{read, Format, ReadContext};
 use crate::geometry::{dot, normal};
 use crate::repair::Plan;
 
-/// Writes the copy.
+/// Writes the copy, with a note when the source's padding after its binary facets is left out.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    copy(job.source, job.single()?, job.out, job.cx)?;
-    Ok(job.written(Vec::new(), Vec::new()))
+    let notes = copy(job.source, job.single()?, job.out, job.cx)?;
+    Ok(job.written(Vec::new(), notes))
 }
 
-fn copy(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
+fn copy(
+    source: &Path,
+    plan: &Plan,
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<Vec<String>, WriteError> {
     let bytes = std::fs::read(source)?;
     let mesh = read(source, Format::Stl, cx)?
         .pop()
         .ok_or_else(|| WriteError::new("the STL reader returned no mesh"))?;
-    let binary = binary_count(&bytes).is_some();
+    // Binary exactly when the reader read it as binary (padded files too).
+    let (binary, extra) = match layout(&bytes)? {
+        Layout::Binary { extra, .. } => (true, extra),
+        Layout::Ascii | Layout::Empty => (false, 0),
+    };
     let facets: Vec<([f32; 3], [[f64; 3]; 3], u16)> = plan
         .triangles
         .iter()
@@ -78,13 +90,15 @@ fn copy(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), 
         let _ = writeln!(s, "endsolid {name}");
         s.into_bytes()
     };
-    write_atomic(out, &data)
-}
-
-/// The facet count of a binary STL (the reader's test: the size is exactly `84 + 50 n`).
-fn binary_count(bytes: &[u8]) -> Option<usize> {
-    let n = u32::from_le_bytes(bytes.get(80..84)?.try_into().ok()?) as u64;
-    (84 + 50 * n == bytes.len() as u64).then_some(n as usize)
+    write_atomic(out, &data)?;
+    let mut notes = Vec::new();
+    if extra > 0 {
+        notes.push(format!(
+            "the {extra} byte(s) after the source's binary facets (padding the reader ignored) are \
+             not in the copy"
+        ));
+    }
+    Ok(notes)
 }
 
 /// The name after the first `solid`, trimmed.
