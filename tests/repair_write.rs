@@ -1862,3 +1862,124 @@ fn padded_binary_stl_copy_stays_binary() {
         );
     }
 }
+
+/// A PLY whose face lists hold `uchar` vertex numbers, with 256 vertices (0..255, all used): a
+/// tetrahedron on the axes and a square pyramid below it share vertex 0, which is non-manifold,
+/// and 62 more tetrahedra along x use the other 248. The repair gives vertex 0 a copy, the 257th
+/// vertex, number 256, which a `uchar` cannot hold: the copy's list is `ushort` (said in a note),
+/// and its faces name vertex 256, at vertex 0's place (moved a hair into its fan), in both
+/// encodings.
+#[test]
+fn ply_index_lists_are_widened_when_the_repair_numbers_past_them() {
+    let mut positions: Vec<[f64; 3]> = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [-1.0, -1.0, -1.0],
+        [1.0, -1.0, -1.0],
+        [1.0, 1.0, -1.0],
+        [-1.0, 1.0, -1.0],
+    ];
+    // Outward: the tetrahedron, then the pyramid's base (seen from below) and sides.
+    let tetra = |b: u32| {
+        [
+            [b, b + 2, b + 1],
+            [b, b + 1, b + 3],
+            [b + 1, b + 2, b + 3],
+            [b, b + 3, b + 2],
+        ]
+    };
+    let mut faces: Vec<Vec<u32>> = tetra(0).iter().map(|f| f.to_vec()).collect();
+    faces.push(vec![4, 7, 6, 5]);
+    faces.extend([[4, 5, 0], [5, 6, 0], [6, 7, 0], [7, 4, 0]].map(|f| f.to_vec()));
+    for k in 0..62 {
+        let b = positions.len() as u32;
+        let x = 5.0 + 3.0 * k as f64;
+        positions.extend([
+            [x, 0.0, 0.0],
+            [x + 1.0, 0.0, 0.0],
+            [x, 1.0, 0.0],
+            [x, 0.0, 1.0],
+        ]);
+        faces.extend(tetra(b).iter().map(|f| f.to_vec()));
+    }
+    assert_eq!(positions.len(), 256);
+    for encoding in ["ascii", "binary_little_endian"] {
+        let dir = tempfile::tempdir().unwrap();
+        let (src, out) = (dir.path().join("src"), dir.path().join("out"));
+        std::fs::create_dir_all(&src).unwrap();
+        let mut bytes = format!(
+            "ply\nformat {encoding} 1.0\nelement vertex 256\nproperty float x\nproperty float y\n\
+             property float z\nelement face {}\nproperty list uchar uchar vertex_indices\nend_header\n",
+            faces.len()
+        )
+        .into_bytes();
+        if encoding == "ascii" {
+            for p in &positions {
+                bytes.extend(format!("{} {} {}\n", p[0], p[1], p[2]).bytes());
+            }
+            for f in &faces {
+                let numbers: Vec<String> = f.iter().map(u32::to_string).collect();
+                bytes.extend(format!("{} {}\n", f.len(), numbers.join(" ")).bytes());
+            }
+        } else {
+            for p in &positions {
+                for x in p {
+                    bytes.extend((*x as f32).to_le_bytes());
+                }
+            }
+            for f in &faces {
+                bytes.push(f.len() as u8);
+                bytes.extend(f.iter().map(|&v| v as u8));
+            }
+        }
+        std::fs::write(src.join("parts.ply"), &bytes).unwrap();
+        let settings = meshvet::config::Settings {
+            repair_dir: Some(out.clone()),
+            ..Default::default()
+        };
+        let source = meshvet::walk::walk(
+            std::slice::from_ref(&src),
+            &meshvet::walk::Filter::everything(),
+        )
+        .remove(0);
+        let outcomes = meshvet::scan::scan_file(&source, &settings);
+        let row = &outcomes[0].row;
+        assert_eq!(row.findings, "non-manifold-vertex:1", "{encoding}: {row:?}");
+        assert_eq!(row.repairs, "split-non-manifold-vertices:1", "{encoding}");
+        assert_eq!(
+            (row.status_after.as_str(), row.findings_after.as_str()),
+            ("pass", ""),
+            "{encoding}"
+        );
+        assert!(
+            row.message.contains(
+                "copy: the PLY face list `vertex_indices` is ushort in the copy instead of uchar: \
+                 the repair numbers vertices up to 256, past what uchar holds"
+            ),
+            "{encoding}: {}",
+            row.message
+        );
+        let copy_path = out.join("parts.ply");
+        let copy = std::fs::read(&copy_path).unwrap();
+        let text = String::from_utf8_lossy(&copy);
+        assert!(
+            text.contains("element vertex 257\n")
+                && text.contains("property list uchar ushort vertex_indices\n"),
+            "{encoding}: {text}"
+        );
+        let again = read(&copy_path, Format::Ply, &cx(&out)).unwrap().remove(0);
+        assert_eq!(again.positions.len(), 257);
+        // The 256 source vertices keep their places; the copy is vertex 0's, a hair away.
+        assert_eq!(again.positions[..256], positions[..]);
+        let moved = again.positions[256];
+        assert!(moved.iter().all(|x| x.abs() < 0.01), "{moved:?}");
+        let named: BTreeSet<u32> = again.triangles.iter().flatten().copied().collect();
+        assert_eq!(
+            named.len(),
+            257,
+            "{encoding}: every vertex, 256 too, is named"
+        );
+    }
+}

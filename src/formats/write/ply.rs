@@ -4,7 +4,10 @@
 //! hole fill takes its neighbour's; per-corner face lists (`texcoord` with 2 values a corner)
 //! follow their corners (a fill's corner taken from a face without such a list gets the values of
 //! its own face's corner at the same vertex, else zeros, so every record keeps its length). Normals
-//! (`nx ny nz`) that disagree with a flipped face are negated.
+//! (`nx ny nz`) that disagree with a flipped face are negated. A face index list whose item type
+//! cannot hold the copy's largest vertex number (a `uchar` list once a split numbers a vertex
+//! copy 256) is declared with the smallest wider type of its kind, with a note; numbers are never
+//! wrapped or cut.
 //!
 //! Other elements: one that names vertices by a recognised property (integer scalars `vertex`,
 //! `vertex1`, `vertex2`, ..., `vertex_index`, `vertex_id`; integer lists `vertex_indices`,
@@ -86,6 +89,38 @@ fn copy(
     };
     let items = polygons.items(plan, &mesh);
     let (index, kept) = renumber(plan);
+    let mut notes = Vec::new();
+
+    // The face element as the copy declares it: its index list's item type widened when the
+    // copy's vertex numbers do not fit it (a split's copies numbered past 255 in a `uchar` list).
+    // Every vertex of a polygon written whole is a corner of one of its triangles, so the largest
+    // number the faces name is the largest among the plan's triangles.
+    let mut face_def = face_element.map(|e| e.def.clone());
+    let mut widened = None;
+    if let (Some(def), Some(key)) = (face_def.as_mut(), index_key) {
+        if let Some(p) = def.properties.get_mut(key) {
+            if let PropertyType::List(_, item) = &mut p.data_type {
+                let top = plan
+                    .triangles
+                    .iter()
+                    .flat_map(|t| &t.corners)
+                    .map(|c| index[c.vertex as usize])
+                    .max()
+                    .unwrap_or(0);
+                if let Some(wide) = wider(item, top) {
+                    notes.push(format!(
+                        "the PLY face list `{key}` is {} in the copy instead of {}: the repair \
+                         numbers vertices up to {top}, past what {} holds",
+                        type_name(&wide),
+                        type_name(item),
+                        type_name(item)
+                    ));
+                    widened = Some((key, wide.clone()));
+                    *item = wide;
+                }
+            }
+        }
+    }
 
     let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
     let sums = normal_sums(plan, &mesh, |c| Some(c.vertex));
@@ -93,7 +128,6 @@ fn copy(
     let mut body = Body::new(header.encoding);
     // Each element's new count; `None`: left out of the copy.
     let mut counts: Vec<(String, Option<usize>)> = Vec::new();
-    let mut notes = Vec::new();
     for e in &elements {
         if e.def.properties.is_empty() {
             if e.def.count > 0 {
@@ -138,6 +172,7 @@ fn copy(
                 counts.push((e.def.name.clone(), Some(kept)));
             }
             "face" => {
+                let def = face_def.as_ref().unwrap_or(&e.def);
                 let slot = index_slot(e).unwrap_or(0);
                 for item in &items {
                     // (polygon whose properties are used, its corners in output order, vertices)
@@ -169,7 +204,7 @@ fn copy(
                     let record = face_record(
                         e, face, slot, &corners, &vertices, &origins, &index, item, plan, &polygons,
                     );
-                    body.record(&e.def, &record);
+                    body.record(def, &record);
                 }
                 counts.push((e.def.name.clone(), Some(items.len())));
             }
@@ -224,7 +259,11 @@ fn copy(
         }
     }
 
-    let mut out_bytes = rewrite_counts(&text, &counts).into_bytes();
+    let mut header_text = rewrite_counts(&text, &counts);
+    if let Some((key, wide)) = &widened {
+        header_text = rewrite_list_item(&header_text, "face", key, wide);
+    }
+    let mut out_bytes = header_text.into_bytes();
     out_bytes.extend_from_slice(&body.bytes);
     write_atomic(out, &out_bytes)?;
     Ok(notes)
@@ -452,6 +491,65 @@ fn rewrite_counts(header: &str, counts: &[(String, Option<usize>)]) -> String {
             skipping = false;
         } else if skipping && words.first() == Some(&"property") {
             continue;
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
+}
+
+/// The smallest integer type of the same kind as `item` (signed or not) that holds `top`, when
+/// `item` does not; `None` when it does (or is a float type).
+fn wider(item: &ScalarType, top: u32) -> Option<ScalarType> {
+    let top = u64::from(top);
+    let max = |t: &ScalarType| match t {
+        ScalarType::Char => 127,
+        ScalarType::UChar => 255,
+        ScalarType::Short => 32_767,
+        ScalarType::UShort => 65_535,
+        ScalarType::Int => 2_147_483_647,
+        ScalarType::UInt | ScalarType::Float | ScalarType::Double => u64::MAX,
+    };
+    if top <= max(item) {
+        return None;
+    }
+    let ladder: &[ScalarType] = match item {
+        ScalarType::Char | ScalarType::Short | ScalarType::Int => {
+            &[ScalarType::Short, ScalarType::Int, ScalarType::UInt]
+        }
+        _ => &[ScalarType::UShort, ScalarType::UInt],
+    };
+    ladder.iter().find(|t| top <= max(t)).cloned()
+}
+
+/// A scalar type's name in a PLY header.
+fn type_name(t: &ScalarType) -> &'static str {
+    match t {
+        ScalarType::Char => "char",
+        ScalarType::UChar => "uchar",
+        ScalarType::Short => "short",
+        ScalarType::UShort => "ushort",
+        ScalarType::Int => "int",
+        ScalarType::UInt => "uint",
+        ScalarType::Float => "float",
+        ScalarType::Double => "double",
+    }
+}
+
+/// The header text with the item type of list property `property` of element `element` replaced
+/// by `item` (its count type kept).
+fn rewrite_list_item(header: &str, element: &str, property: &str, item: &ScalarType) -> String {
+    let mut out = String::with_capacity(header.len() + 8);
+    let mut current = "";
+    for line in header.lines() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["element", name, ..] => current = name,
+            ["property", "list", count, _, name] if current == element && *name == property => {
+                let _ = writeln!(out, "property list {count} {} {name}", type_name(item));
+                continue;
+            }
+            _ => {}
         }
         out.push_str(line);
         out.push('\n');
