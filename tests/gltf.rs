@@ -826,11 +826,30 @@ fn regression_views_and_buffers_out_of_range() {
     assert!(read_err("n.gltf", bad_node).contains("mesh 4"));
 }
 
+/// Integer positions are quantized (KHR_mesh_quantization), which meshvet neither reads nor
+/// repairs: the error says what the file holds and what to do with it, whether the extension is
+/// declared required or not.
 #[test]
 fn quantized_positions_are_refused() {
     let json = triangle().replace(r#""componentType":5126"#, r#""componentType":5123"#);
-    let err = read_err("q.gltf", json);
-    assert!(err.contains("UNSIGNED_SHORT VEC3"), "{err}");
+    let err = read_err("q.gltf", json.clone());
+    let advice = "re-export it with float positions (no mesh quantization: gltfpack -noq), or \
+                  dequantize it (gltf-transform dequantize) and scan that file";
+    assert!(
+        err.contains("UNSIGNED_SHORT VEC3") && err.contains("KHR_mesh_quantization"),
+        "{err}"
+    );
+    assert!(err.ends_with(advice), "{err}");
+    let required = json.replacen(
+        '{',
+        r#"{"extensionsRequired":["KHR_mesh_quantization"],"#,
+        1,
+    );
+    let err = read_err("q.gltf", required);
+    assert_eq!(
+        err,
+        format!("requires extension KHR_mesh_quantization, which meshvet cannot decode: {advice}")
+    );
 }
 
 #[test]

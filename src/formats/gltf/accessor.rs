@@ -41,7 +41,7 @@ fn err(msg: String) -> ReadError {
     ReadError::new(msg)
 }
 
-fn component_name(c: ComponentType) -> &'static str {
+pub(crate) fn component_name(c: ComponentType) -> &'static str {
     match c {
         ComponentType::I8 => "BYTE",
         ComponentType::U8 => "UNSIGNED_BYTE",
@@ -51,6 +51,11 @@ fn component_name(c: ComponentType) -> &'static str {
         ComponentType::F32 => "FLOAT",
     }
 }
+
+/// What to do with a glTF whose positions are quantized (KHR_mesh_quantization): meshvet reads,
+/// checks and repairs only float positions.
+pub(crate) const DEQUANTIZE: &str = "re-export it with float positions (no mesh quantization: \
+     gltfpack -noq), or dequantize it (gltf-transform dequantize) and scan that file";
 
 /// The name glTF's JSON gives an accessor type (`VEC3`, ...).
 pub(crate) fn type_name(t: Type) -> &'static str {
@@ -345,7 +350,7 @@ impl Data<'_> {
             (Checked::Valid(Type::Vec3), Checked::Valid(GenericComponentType(ComponentType::F32))) => {}
             (Checked::Valid(t), Checked::Valid(GenericComponentType(c))) => {
                 return Err(err(format!(
-                    "{what}: POSITION accessor is {} {}, meshvet reads FLOAT VEC3 positions (quantized positions need KHR_mesh_quantization, which meshvet does not support)",
+                    "{what}: POSITION accessor is {} {}, meshvet reads FLOAT VEC3 positions (integer positions are quantized, KHR_mesh_quantization, which meshvet does not decode): {DEQUANTIZE}",
                     component_name(c),
                     type_name(t)
                 )))

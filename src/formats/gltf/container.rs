@@ -318,6 +318,7 @@ pub fn parse_model(json: &[u8]) -> Result<Model, ReadError> {
         .iter()
         .find(|e| !is_harmless(e))
     {
+        let dequantize;
         let advice = match ext.as_str() {
             "KHR_draco_mesh_compression" => {
                 "which meshvet cannot decode: export without Draco compression"
@@ -326,7 +327,11 @@ pub fn parse_model(json: &[u8]) -> Result<Model, ReadError> {
                 "which meshvet cannot decode: export without meshopt compression"
             }
             "KHR_mesh_quantization" => {
-                "which meshvet cannot decode: export with float positions (no mesh quantization)"
+                dequantize = format!(
+                    "which meshvet cannot decode: {}",
+                    super::accessor::DEQUANTIZE
+                );
+                &dequantize
             }
             _ => "which meshvet does not support: export without it",
         };

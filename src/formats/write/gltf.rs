@@ -30,7 +30,7 @@ use serde_json::json;
 
 use super::names::Claims;
 use super::{normal_sums, write_atomic, Job, WriteError, Written};
-use crate::formats::gltf::accessor::{type_name, Data};
+use crate::formats::gltf::accessor::{component_name, type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
 use crate::formats::gltf::container;
 use crate::formats::{read, Format, ReadContext};
@@ -609,7 +609,14 @@ fn rewrite_mesh(
             let (mut bytes, v) = gathered;
             if name == "POSITION" {
                 if v.component != ComponentType::F32 || v.type_ != Type::Vec3 {
-                    return Err(bad(format!("{pwhat}: POSITION is not FLOAT VEC3")));
+                    return Err(bad(format!(
+                        "{pwhat}: POSITION is {} {}, and a repaired copy is written with float \
+                         positions only (quantized positions, KHR_mesh_quantization, are not \
+                         decoded): {}",
+                        component_name(v.component),
+                        type_name(v.type_),
+                        crate::formats::gltf::accessor::DEQUANTIZE
+                    )));
                 }
                 for (i, &vertex) in order.iter().enumerate() {
                     let p = plan.position(mesh, vertex);
