@@ -159,8 +159,9 @@ impl Claims {
         }
         // What is on disk: nothing, or these very bytes (checked under the lock, so no other copy
         // of this process is moving a file there meanwhile without having claimed it).
+        let mut absent = false;
         match std::fs::symlink_metadata(path) {
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => absent = true,
             Ok(m) if m.is_file() && m.len() == bytes.len() as u64 => {
                 if std::fs::read(path).ok().as_deref() != Some(bytes) {
                     return Err(Refused::OnDisk);
@@ -175,6 +176,8 @@ impl Claims {
         });
         held.digest = Some(digest);
         held.holders += 1;
+        // Nothing there: no copy in place names it (it was removed since).
+        held.in_use &= !absent;
         self.held.borrow_mut().push(path.to_path_buf());
         Ok(())
     }
@@ -301,5 +304,32 @@ mod tests {
             Ok(PathBuf::from("mesh.bin"))
         );
         claims.copy(&folder.join("a.gltf")).unwrap();
+    }
+
+    /// A side file a copy in place names is not removed by another copy's undo; once it is gone
+    /// from the folder and claimed again, the new claim's undo removes what it put there.
+    #[test]
+    fn undo_removes_only_side_files_no_copy_in_place_names() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lib.mtl");
+        let first = Claims::new(dir.path());
+        assert_eq!(
+            first.side(Path::new("lib.mtl"), b"one", false),
+            Ok(PathBuf::from("lib.mtl"))
+        );
+        std::fs::write(&path, b"one").unwrap();
+        first.committed();
+        drop(first);
+        let second = Claims::new(dir.path());
+        assert!(second.side(Path::new("lib.mtl"), b"one", false).is_ok());
+        second.undo(&path);
+        assert!(path.is_file(), "a copy in place names it");
+        drop(second);
+        std::fs::remove_file(&path).unwrap();
+        let third = Claims::new(dir.path());
+        assert!(third.side(Path::new("lib.mtl"), b"two", false).is_ok());
+        std::fs::write(&path, b"two").unwrap();
+        third.undo(&path);
+        assert!(!path.exists(), "only this claim put it there");
     }
 }
