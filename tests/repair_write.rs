@@ -1788,7 +1788,7 @@ fn a_side_file_never_replaces_a_different_file() {
     let mut judged = judged_meshes(&meshes, &settings);
     let repaired = meshvet::copies::repair_file(
         &out,
-        &source.display,
+        &source.report_path,
         &source.path,
         Format::Obj,
         &cx(&src),
