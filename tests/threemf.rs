@@ -1161,6 +1161,175 @@ fn triangle_attributes(text: &str, name: &str) -> Vec<std::collections::BTreeMap
         .collect()
 }
 
+const SLIC3RPE: &str = "http://schemas.slic3r.org/3mf/2017/06";
+
+/// A painted tetrahedron whose last triangle (0, 2, 3) is wound against the others, the way
+/// PrusaSlicer and BambuStudio write paint: `slic3rpe:` attributes (not plain: read by the XML
+/// reader) and unprefixed ones (plain: read by the fast path), a value in single quotes, an
+/// attribute of a namespace declared on `<triangles>`, a value with a reference; and an open box
+/// with `paint_color` on every triangle. Returns the model text.
+fn painted_model() -> String {
+    let tetra = r#"  <object id="1" name="painted" type="model">
+   <mesh>
+    <vertices>
+     <vertex x="0" y="0" z="0"/>
+     <vertex x="1" y="0" z="0"/>
+     <vertex x="0" y="1" z="0"/>
+     <vertex x="0" y="0" z="1"/>
+    </vertices>
+    <triangles xmlns:x="urn:example:x">
+     <triangle v1="0" v2="2" v3="1" slic3rpe:mmu_segmentation="4"/>
+     <triangle v1="0" v2="1" v3="3" paint_color='8'/>
+     <triangle v1="1" v2="2" v3="3" slic3rpe:custom_supports="C" face_property="7"/>
+     <triangle v1="0" v2="2" v3="3" slic3rpe:mmu_segmentation="481" paint_seam="4806" x:note="keep &amp; me" slic3rpe:custom_seam="C"/>
+    </triangles>
+   </mesh>
+  </object>
+"#;
+    let (p, t) = cube(true);
+    let mut open = mesh_object(2, "open box", &p, &t);
+    open = open.replace(
+        "\"/>\n     <triangle",
+        "\" paint_color=\"4\"/>\n     <triangle",
+    );
+    open = open.replace(
+        "\"/>\n    </triangles>",
+        "\" paint_color=\"4\"/>\n    </triangles>",
+    );
+    model_with(
+        &format!(" xmlns:slic3rpe=\"{SLIC3RPE}\""),
+        &format!("{tetra}{open}"),
+        "  <item objectid=\"1\"/>\n  <item objectid=\"2\" transform=\"1 0 0 0 1 0 0 0 1 3 0 0\"/>",
+    )
+}
+
+/// The `<triangle .../>` tags of the object named `name` in a model text, as written.
+fn triangle_tags(text: &str, name: &str) -> Vec<String> {
+    let at = text.find(&format!("name=\"{name}\"")).unwrap();
+    let end = at + text[at..].find("</triangles>").unwrap();
+    text[at..end]
+        .split("<triangle ")
+        .skip(1)
+        .map(|t| format!("<triangle {}", &t[..t.find("/>").unwrap() + 2]))
+        .collect()
+}
+
+/// A repaired copy keeps every attribute of every kept triangle as the source writes it, prefix
+/// and all (the `<triangles>` start tag keeps the namespace it declares). The flipped triangle's
+/// paint is re-encoded for its new corners (hand-derived in `paint.rs`'s tests:
+/// `481` -> `841`, `4806` -> `84905`); its `slic3rpe:custom_seam="C"` is no paint PrusaSlicer
+/// could read (a state code `C` with no code after it), so it cannot be re-encoded: it is left
+/// out, and a note says so. The unflipped triangle's `C` is carried as it is. The box's fill
+/// triangles carry no paint.
+#[test]
+fn a_repaired_copy_keeps_slicer_paint_and_other_triangle_attributes() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = painted_model();
+    let source = dir.path().join("painted.3mf");
+    std::fs::write(&source, package(&text)).unwrap();
+    let meshes = read(&source, Format::ThreeMf, &cx(dir.path())).unwrap();
+    let plans = plans(&meshes);
+    assert_eq!(
+        plans_of(&meshes),
+        [
+            Some("orient-faces:1".to_owned()),
+            Some("fill-holes:1(2 faces)".to_owned())
+        ]
+    );
+    let out = dir.path().join("out/painted.3mf");
+    let written = meshvet::formats::write::write_copy(
+        &source,
+        Format::ThreeMf,
+        &plans,
+        &out,
+        &cx(dir.path()),
+        None,
+    )
+    .unwrap();
+    assert_eq!(
+        written.notes.len(),
+        1,
+        "one note, for the paint left out: {:?}",
+        written.notes
+    );
+    assert!(
+        written.notes[0].starts_with(
+            "object 1 of /3D/3dmodel.model: 1 flipped triangle(s) lost their slicer paint (`slic3rpe:custom_seam`)"
+        ),
+        "{}",
+        written.notes[0]
+    );
+    let copy = entries(&std::fs::read(&out).unwrap());
+    let new = String::from_utf8(copy[2].1.clone()).unwrap();
+    assert!(
+        new.contains("<triangles xmlns:x=\"urn:example:x\">"),
+        "{new}"
+    );
+    assert_eq!(
+        triangle_tags(&new, "painted"),
+        [
+            r#"<triangle v1="0" v2="2" v3="1" slic3rpe:mmu_segmentation="4"/>"#,
+            r#"<triangle v1="0" v2="1" v3="3" paint_color="8"/>"#,
+            r#"<triangle v1="1" v2="2" v3="3" slic3rpe:custom_supports="C" face_property="7"/>"#,
+            r#"<triangle v1="0" v2="3" v3="2" slic3rpe:mmu_segmentation="841" paint_seam="84905" x:note="keep &amp; me"/>"#,
+        ]
+    );
+    let open = triangle_tags(&new, "open box");
+    assert_eq!(open.len(), 12);
+    assert!(
+        open[..10]
+            .iter()
+            .all(|t| t.ends_with(" paint_color=\"4\"/>")),
+        "{open:?}"
+    );
+    assert!(open[10..].iter().all(|t| !t.contains("paint")), "{open:?}");
+    // The copy is namespace-well-formed: every prefix resolves, to the namespace it had.
+    let doc = roxmltree::Document::parse(&new).unwrap();
+    let last = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("triangle"))
+        .nth(3)
+        .unwrap();
+    assert_eq!(last.attribute(("urn:example:x", "note")), Some("keep & me"));
+    assert_eq!(last.attribute((SLIC3RPE, "mmu_segmentation")), Some("841"));
+    // Read back, the copy is repaired.
+    let again = read(&out, Format::ThreeMf, &cx(out.parent().unwrap())).unwrap();
+    assert!(plans_of(&again).iter().all(Option::is_none));
+}
+
+/// An attribute value holding a NUL character (not XML, but read) is left out of the copy with a
+/// note, not written back where it would be read as part of the writer's own text.
+#[test]
+fn a_triangle_attribute_with_a_nul_is_left_out_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = painted_model().replace("face_property=\"7\"", "face_property=\"a\0Pb\"");
+    let source = dir.path().join("nul.3mf");
+    std::fs::write(&source, package(&text)).unwrap();
+    let meshes = read(&source, Format::ThreeMf, &cx(dir.path())).unwrap();
+    let out = dir.path().join("out/nul.3mf");
+    let written = meshvet::formats::write::write_copy(
+        &source,
+        Format::ThreeMf,
+        &plans(&meshes),
+        &out,
+        &cx(dir.path()),
+        None,
+    )
+    .unwrap();
+    assert!(
+        written.notes.iter().any(|n| n.starts_with(
+            "object 1 of /3D/3dmodel.model: 1 attribute(s) of its triangles hold a NUL character"
+        )),
+        "{:?}",
+        written.notes
+    );
+    let new = String::from_utf8(entries(&std::fs::read(&out).unwrap())[2].1.clone()).unwrap();
+    assert_eq!(
+        triangle_tags(&new, "painted")[2],
+        r#"<triangle v1="1" v2="2" v3="3" slic3rpe:custom_supports="C"/>"#
+    );
+}
+
 /// A mesh with a beam lattice is not rewritten (the lattice numbers its vertices): the writer says
 /// so, and the source is untouched.
 #[test]

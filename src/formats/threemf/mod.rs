@@ -25,6 +25,7 @@
 pub(crate) mod assembly;
 pub(crate) mod model;
 pub(crate) mod package;
+pub(crate) mod paint;
 mod xml;
 
 use std::collections::BTreeMap;

@@ -144,6 +144,14 @@ pub struct MeshData {
     pub triangles: Vec<[u32; 3]>,
     /// `pid`, `p1`, `p2`, `p3` of every triangle ([`NONE`] where absent); only when kept.
     pub properties: Vec<[u32; 4]>,
+    /// The other attributes of the triangles that have any (a slicer's paint, such as
+    /// `slic3rpe:mmu_segmentation` or `paint_color`, namespace declarations, ...), as the file
+    /// writes them: each ` name="value"` with its prefix, its quotes and its value's references
+    /// as they are, so that a writer can put them back verbatim. Per such triangle, its index and
+    /// the end of its text in [`MeshData::other_text`] (its text starts where the one before ends);
+    /// only when kept.
+    pub others: Vec<(u32, usize)>,
+    pub other_text: String,
     pub spans: Spans,
     /// What else the `<mesh>` holds, in words (`beam lattice`, `triangle sets`, `<x>`), each kind
     /// once with how many elements of it there are, at most [`EXTRA_KINDS`] kinds: a note per
@@ -160,6 +168,38 @@ pub struct MeshData {
 pub const EXTRA_KINDS: usize = 8;
 
 impl MeshData {
+    /// The other attributes of triangle `t` (see [`MeshData::others`]), `""` when it has none.
+    pub fn other_attributes(&self, t: u32) -> &str {
+        match self.others.binary_search_by_key(&t, |&(k, _)| k) {
+            Ok(i) => {
+                let start = if i == 0 { 0 } else { self.others[i - 1].1 };
+                self.other_text.get(start..self.others[i].1).unwrap_or("")
+            }
+            Err(_) => "",
+        }
+    }
+
+    /// Adds ` name="value"` to the other attributes of the triangle being read (`value` as
+    /// written, references not expanded; in single quotes when it holds a double one).
+    fn other_attribute(&mut self, name: &[u8], value: &[u8]) {
+        let quote = if value.contains(&b'"') { b'\'' } else { b'"' };
+        let text = &mut self.other_text;
+        text.push(' ');
+        text.push_str(&String::from_utf8_lossy(name));
+        text.push('=');
+        text.push(char::from(quote));
+        text.push_str(&String::from_utf8_lossy(value));
+        text.push(char::from(quote));
+    }
+
+    /// Ends the other attributes of the triangle about to be pushed (its text began at `start`).
+    fn close_others(&mut self, start: usize) {
+        if self.other_text.len() > start {
+            let t = u32::try_from(self.triangles.len()).unwrap_or(u32::MAX);
+            self.others.push((t, self.other_text.len()));
+        }
+    }
+
     /// Counts an element of kind `extra` (see [`MeshData::extras`]).
     fn add_extra(&mut self, extra: String) {
         if let Some(kind) = self.extras.iter_mut().find(|(e, _)| *e == extra) {
@@ -305,6 +345,15 @@ pub fn parse<R: BufRead>(
                         else {
                             return Ok(false);
                         };
+                        if settings.keep {
+                            let start = m.other_text.len();
+                            for &(name, value) in attributes {
+                                if !core_triangle_attribute(name) {
+                                    m.other_attribute(name, value);
+                                }
+                            }
+                            m.close_others(start);
+                        }
                         m.push_triangle(t, properties, totals, settings, &part)?;
                         Ok(true)
                     })?;
@@ -374,6 +423,15 @@ pub fn parse<R: BufRead>(
         if core && parent == Some(Node::Triangles) && local == b"triangle" {
             let m = mesh.as_mut().expect("triangles are inside a mesh");
             let (t, properties) = triangle(e, &xml, m.triangles.len(), settings.keep)?;
+            if settings.keep {
+                let start = m.other_text.len();
+                xml.each_raw_attribute(e, |name, value| {
+                    if !core_triangle_attribute(name) {
+                        m.other_attribute(name, value);
+                    }
+                });
+                m.close_others(start);
+            }
             m.push_triangle(t, properties, totals, settings, &part)?;
             if start {
                 xml.skip(&mut buf)?;
@@ -779,6 +837,12 @@ fn plain_vertex(attributes: &[(&[u8], &[u8])]) -> Option<[f64; 3]> {
     (got == 0b111).then_some(p)
 }
 
+/// Whether an attribute of a `<triangle>` (its name as written) is one the reader takes apart:
+/// `v1`..`v3`, `pid`, `p1`..`p3` (no prefix: the core namespace's).
+fn core_triangle_attribute(name: &[u8]) -> bool {
+    matches!(name, b"v1" | b"v2" | b"v3" | b"pid" | b"p1" | b"p2" | b"p3")
+}
+
 /// A triangle (and its properties when `keep`) from the plain attributes of a tag, if its indices
 /// are whole numbers.
 fn plain_triangle(attributes: &[(&[u8], &[u8])], keep: bool) -> Option<([u32; 3], [u32; 4])> {
@@ -990,11 +1054,14 @@ mod tests {
         let mut spaced_t = String::new();
         for k in 0..n - 2 {
             let (a, b, c) = (k, k + 1, k + 2);
-            let p = if k % 3 == 0 {
+            let mut p = if k % 3 == 0 {
                 format!(" pid=\"2\" p1=\"{a}\"")
             } else {
                 String::new()
             };
+            if k % 5 == 0 {
+                p.push_str(&format!(" paint_color='{k}C'"));
+            }
             plain_t.push_str(&format!(
                 "\t<triangle v1=\"{a}\" v2=\"{b}\" v3=\"{c}\"{p}/>\r\n"
             ));
@@ -1022,6 +1089,10 @@ mod tests {
         assert_eq!(a.triangles, b.triangles);
         assert_eq!(a.properties, b.properties);
         assert_eq!(a.properties[3], [2, 3, NONE, NONE]);
+        assert_eq!((&a.others, &a.other_text), (&b.others, &b.other_text));
+        assert_eq!(a.others.len(), (n as usize - 2).div_ceil(5));
+        assert_eq!(a.other_attributes(5), " paint_color=\"5C\"");
+        assert_eq!(a.other_attributes(6), "");
         // The spans still point at the elements after a run.
         let text = doc(&plain, &plain_t);
         let t = a.spans.triangles.clone().unwrap();

@@ -556,6 +556,16 @@ impl<R: BufRead> Xml<R> {
         Ok(())
     }
 
+    /// Calls `f(name, value)` for every attribute of the last start tag `e`, namespace
+    /// declarations included, as written: the name with its prefix, the value (without its
+    /// quotes) with its references not expanded.
+    pub fn each_raw_attribute(&self, e: &BytesStart, mut f: impl FnMut(&[u8], &[u8])) {
+        let raw = e.attributes_raw();
+        for (name, value) in &self.attributes {
+            f(&raw[name.clone()], &raw[value.clone()]);
+        }
+    }
+
     pub fn error(&self, what: &str) -> ReadError {
         ReadError::new(format!("part {} {what}", self.part))
     }

@@ -6,9 +6,15 @@
 //!
 //! A triangle keeps its properties: its `pid`, and the `p1`..`p3` of its corners follow the corners,
 //! so a flipped triangle swaps `p2` and `p3` along with `v2` and `v3` (a triangle with `p1` alone
-//! keeps `p1` alone). A triangle that fills a hole takes the `pid` and `p1` of the triangle beside
-//! it (its `near` triangle), or none. A vertex the repair adds (one copy per extra fan of a split
-//! vertex) is written like the others: 3MF vertices carry nothing but their position.
+//! keeps `p1` alone). Its other attributes (a slicer's paint such as `slic3rpe:mmu_segmentation`
+//! or `paint_color`, anything else) are written back as the source writes them, prefixes and all;
+//! the start tags of `<vertices>` and `<triangles>` keep their attributes too, so every prefix
+//! stays declared. Slicer paint is relative to the corner order: on a flipped triangle it is
+//! re-encoded for the new order ([`crate::formats::threemf::paint`]), and a paint string that is
+//! not of that encoding is left out, with a note that says how many triangles lost paint. A
+//! triangle that fills a hole takes the `pid` and `p1` of the triangle beside it (its `near`
+//! triangle), or none, and no other attribute. A vertex the repair adds (one copy per extra fan
+//! of a split vertex) is written like the others: 3MF vertices carry nothing but their position.
 //!
 //! A mesh whose other children number its vertices or triangles (a beam lattice, triangle sets) is
 //! not rewritten: the repair renumbers both, and those references would point elsewhere.
@@ -22,6 +28,7 @@ use zip::{CompressionMethod, ZipWriter};
 use super::{push_int, push_number, renumber, write_atomic, Job, WriteError, Written};
 use crate::formats::threemf::model::{Content, MeshData, NONE};
 use crate::formats::threemf::package::Package;
+use crate::formats::threemf::paint;
 use crate::formats::threemf::read_full;
 use crate::formats::ReadContext;
 use crate::mesh::Mesh;
@@ -31,12 +38,13 @@ use crate::repair::Plan;
 /// byte of every part kept.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
     let (source, plans, out, cx) = (job.source, job.plans, job.out, job.cx);
-    crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
-        Err(WriteError::new(format!(
-            "the 3MF writer crashed on this file ({panic}): please report it"
-        )))
-    })?;
-    Ok(job.written(Vec::new(), Vec::new()))
+    let notes =
+        crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
+            Err(WriteError::new(format!(
+                "the 3MF writer crashed on this file ({panic}): please report it"
+            )))
+        })?;
+    Ok(job.written(Vec::new(), notes))
 }
 
 /// One mesh to rewrite: its two byte ranges in its part and their new text.
@@ -45,12 +53,13 @@ struct Splice {
     text: String,
 }
 
+/// Writes the copy; returns the notes on what it could not keep.
 fn write_unguarded(
     source: &Path,
     plans: &[Option<Plan>],
     out: &Path,
     cx: &ReadContext,
-) -> Result<(), WriteError> {
+) -> Result<Vec<String>, WriteError> {
     let read = read_full(source, cx)?;
     if plans.len() != read.meshes.len() {
         return Err(WriteError::new(format!(
@@ -60,6 +69,7 @@ fn write_unguarded(
         )));
     }
     let mut package = Package::open(source, &cx.limits)?;
+    let mut notes = Vec::new();
     // Per part: its new bytes.
     let mut rewritten: Vec<(String, Vec<u8>)> = Vec::new();
     for (p, (key, model)) in read.parts.iter().enumerate() {
@@ -89,7 +99,22 @@ fn write_unguarded(
                     what()
                 )));
             };
-            let (vertex_text, triangle_text) = mesh_text(plan, &read.meshes[m], data);
+            let (vertex_text, triangle_text, lost) = mesh_text(plan, &read.meshes[m], data);
+            if lost.triangles > 0 {
+                notes.push(format!(
+                    "{}: {} flipped triangle(s) lost their slicer paint ({}): a repair that flips a triangle reorders its corners, and this paint could not be re-encoded for the new order (it is not the encoding PrusaSlicer writes) - repaint them in the slicer",
+                    what(),
+                    lost.triangles,
+                    lost.names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
+                ));
+            }
+            if lost.nul > 0 {
+                notes.push(format!(
+                    "{}: {} attribute(s) of its triangles hold a NUL character, which XML does not allow: they were left out",
+                    what(),
+                    lost.nul
+                ));
+            }
             splices.push(Splice {
                 at: vertices,
                 text: vertex_text,
@@ -150,7 +175,8 @@ fn write_unguarded(
             .map_err(bad)?;
     }
     let bytes = zip.finish().map_err(bad)?.into_inner();
-    write_atomic(out, &bytes)
+    write_atomic(out, &bytes)?;
+    Ok(notes)
 }
 
 /// The part `bytes` with every splice's range replaced by its text (ranges sorted, checked to be
@@ -173,16 +199,18 @@ fn splice(bytes: &[u8], mut splices: Vec<Splice>, part: &str) -> Result<Vec<u8>,
             )));
         }
         out.extend_from_slice(&bytes[done..start]);
-        // The element's own qualified name and indentation are kept for what replaces it.
-        out.extend_from_slice(&restyle(&s.text, bytes, start));
+        // The element's own qualified name, attributes and indentation are kept for what
+        // replaces it.
+        out.extend_from_slice(&restyle(&s.text, &bytes[..end], start));
         done = end;
     }
     out.extend_from_slice(&bytes[done..]);
     Ok(out)
 }
 
-/// `text` (written with `<PFX` for the element's prefix, `\nIND` for a new line at the element's
-/// indentation and `\nIND+` one level deeper) for the element at `start` of `bytes`.
+/// `text` (written with [`mesh_text`]'s markers: NUL `P` for the element's prefix, NUL `A` for the
+/// attributes of its start tag, NUL `I` for a new line at the element's indentation and NUL `D`
+/// one level deeper) for the element at `start` of `bytes` (which end with the element).
 fn restyle(text: &str, bytes: &[u8], start: usize) -> Vec<u8> {
     let name_end = bytes[start + 1..]
         .iter()
@@ -208,12 +236,14 @@ fn restyle(text: &str, bytes: &[u8], start: usize) -> Vec<u8> {
     } else {
         b"  "
     });
+    let attributes = start_tag_attributes(bytes, name_end);
     let mut out = Vec::with_capacity(text.len() + text.len() / 4);
     let mut rest = text.as_bytes();
     while let Some(i) = rest.iter().position(|&b| b == 0) {
         out.extend_from_slice(&rest[..i]);
         match rest.get(i + 1) {
             Some(b'P') => out.extend_from_slice(prefix),
+            Some(b'A') => out.extend_from_slice(attributes),
             Some(b'I') => {
                 out.push(b'\n');
                 out.extend_from_slice(&indent);
@@ -230,13 +260,58 @@ fn restyle(text: &str, bytes: &[u8], start: usize) -> Vec<u8> {
     out
 }
 
+/// The attributes of the start tag whose name ends at `name_end` of `bytes`: everything up to its
+/// `>` (or `/>`), which is the first one outside quotes (a value may hold a `>`).
+fn start_tag_attributes(bytes: &[u8], name_end: usize) -> &[u8] {
+    let mut quote = None;
+    let rest = bytes.get(name_end..).unwrap_or_default();
+    for (i, &b) in rest.iter().enumerate() {
+        match (quote, b) {
+            (None, b'"' | b'\'') => quote = Some(b),
+            (Some(q), _) if b == q => quote = None,
+            (None, b'>') => {
+                let attributes = &rest[..i];
+                return attributes.strip_suffix(b"/").unwrap_or(attributes);
+            }
+            _ => {}
+        }
+    }
+    &[]
+}
+
+/// Triangles whose slicer paint could not be carried: how many, and the attributes' names; and
+/// how many attributes hold a NUL character (which XML does not allow, and which would read as
+/// one of [`restyle`]'s markers).
+#[derive(Default)]
+struct Lost {
+    triangles: usize,
+    names: std::collections::BTreeSet<String>,
+    nul: usize,
+}
+
+/// The attributes in `text` (` name="value"` each, as [`MeshData::other_attributes`] gives them):
+/// (name, value without quotes, the whole attribute with its leading space).
+fn attributes(text: &str) -> impl Iterator<Item = (&str, &str, &str)> {
+    let mut rest = text;
+    std::iter::from_fn(move || {
+        let start = rest.find(|c: char| !c.is_ascii_whitespace())?;
+        let eq = start + rest[start..].find('=')?;
+        let quote = rest[eq + 1..].chars().next()?;
+        let close = eq + 2 + rest[eq + 2..].find(quote)?;
+        let (name, value, whole) = (&rest[start..eq], &rest[eq + 2..close], &rest[..=close]);
+        rest = &rest[close + 1..];
+        Some((name, value, whole))
+    })
+}
+
 /// The new `<vertices>` and `<triangles>` of a repaired mesh, in [`restyle`]'s markers: NUL `P`
-/// for the prefix, NUL `I` for a line at the element's indentation, NUL `D` one level deeper.
-fn mesh_text(plan: &Plan, mesh: &Mesh, data: &MeshData) -> (String, String) {
+/// for the prefix, NUL `A` for the start tag's attributes, NUL `I` for a line at the element's
+/// indentation, NUL `D` one level deeper; and the paint that could not be carried.
+fn mesh_text(plan: &Plan, mesh: &Mesh, data: &MeshData) -> (String, String, Lost) {
     let (index, count) = renumber(plan);
     let index = &index;
     let mut v = String::with_capacity(48 * count + 32);
-    v.push_str("<\0Pvertices>");
+    v.push_str("<\0Pvertices\0A>");
     for (i, &used) in plan.used_vertices.iter().enumerate() {
         if !used {
             continue;
@@ -253,7 +328,8 @@ fn mesh_text(plan: &Plan, mesh: &Mesh, data: &MeshData) -> (String, String) {
     v.push_str("\0I</\0Pvertices>");
 
     let mut t = String::with_capacity(48 * plan.triangles.len() + 32);
-    t.push_str("<\0Ptriangles>");
+    t.push_str("<\0Ptriangles\0A>");
+    let mut lost = Lost::default();
     let property = |s: usize| data.properties.get(s).copied().unwrap_or([NONE; 4]);
     for triangle in &plan.triangles {
         t.push_str("\0D<\0Ptriangle");
@@ -296,8 +372,50 @@ fn mesh_text(plan: &Plan, mesh: &Mesh, data: &MeshData) -> (String, String) {
                 t.push('"');
             }
         }
+        if let Some(s) = triangle.source {
+            others(&mut t, triangle, data.other_attributes(s), &mut lost);
+        }
         t.push_str("/>");
     }
     t.push_str("\0I</\0Ptriangles>");
-    (v, t)
+    (v, t, lost)
+}
+
+/// Appends to `t` the other attributes `text` of the source of the kept `triangle`: as they are,
+/// but slicer paint re-encoded for the triangle's new corner order when the repair changed it
+/// (counted in `lost` when it cannot be).
+fn others(t: &mut String, triangle: &crate::repair::Triangle, text: &str, lost: &mut Lost) {
+    if text.is_empty() {
+        return;
+    }
+    let order = triangle.corners.map(|c| (c.from % 3) as u8);
+    if order == [0, 1, 2] && !text.contains('\0') {
+        t.push_str(text);
+        return;
+    }
+    let mut dropped = false;
+    for (name, value, whole) in attributes(text) {
+        if whole.contains('\0') {
+            lost.nul += 1;
+            continue;
+        }
+        if order == [0, 1, 2] || !paint::is_paint(name) {
+            t.push_str(whole);
+            continue;
+        }
+        match paint::reorder(value, order) {
+            Some(value) => {
+                t.push(' ');
+                t.push_str(name);
+                t.push_str("=\"");
+                t.push_str(&value);
+                t.push('"');
+            }
+            None => {
+                dropped = true;
+                lost.names.insert(name.to_owned());
+            }
+        }
+    }
+    lost.triangles += usize::from(dropped);
 }
