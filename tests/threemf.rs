@@ -1297,6 +1297,70 @@ fn a_repaired_copy_keeps_slicer_paint_and_other_triangle_attributes() {
     assert!(plans_of(&again).iter().all(Option::is_none));
 }
 
+/// PrusaSlicer's `Metadata/Slic3r_PE_model.config` numbers each object's triangles for its
+/// volumes (`firstid`/`lastid`); the copy keeps the file as it is, so an object whose repair drops
+/// or adds triangles gets a note (the open box: 10 triangles, 2 added; a tetrahedron with a
+/// repeated triangle: 5, 1 dropped), and one whose triangles all stay in place (the painted
+/// tetrahedron, one flipped) none.
+#[test]
+fn stale_slicer_volume_ranges_are_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let (tp, mut tt) = tetrahedron();
+    tt.push(tt[0]);
+    let twice = mesh_object(3, "twice", &tp, &tt);
+    let text = painted_model()
+        .replace("\n </resources>", &format!("\n{twice} </resources>"))
+        .replace(
+            "  <item objectid=\"2\"",
+            "  <item objectid=\"3\" transform=\"1 0 0 0 1 0 0 0 1 6 0 0\"/>\n  <item objectid=\"2\"",
+        );
+    let config = b"<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<config>\n <object id=\"1\" instances_count=\"1\">\n  <volume firstid=\"0\" lastid=\"3\"/>\n </object>\n <object id=\"2\" instances_count=\"1\">\n  <volume firstid=\"0\" lastid=\"4\"/>\n  <volume firstid=\"5\" lastid=\"9\"/>\n </object>\n <object id=\"3\" instances_count=\"1\">\n  <volume firstid=\"0\" lastid=\"4\"/>\n </object>\n</config>\n";
+    let bytes = package_with(&text, &[("Metadata/Slic3r_PE_model.config", config)]);
+    let source = dir.path().join("project.3mf");
+    std::fs::write(&source, &bytes).unwrap();
+    let meshes = read(&source, Format::ThreeMf, &cx(dir.path())).unwrap();
+    assert_eq!(
+        plans_of(&meshes),
+        [
+            Some("orient-faces:1".to_owned()),
+            Some("fill-holes:1(2 faces)".to_owned()),
+            Some("drop-duplicate-faces:1".to_owned())
+        ]
+    );
+    let out = dir.path().join("out/project.3mf");
+    let written = meshvet::formats::write::write_copy(
+        &source,
+        Format::ThreeMf,
+        &plans(&meshes),
+        &out,
+        &cx(dir.path()),
+        None,
+    )
+    .unwrap();
+    let ranges: Vec<&String> = written
+        .notes
+        .iter()
+        .filter(|n| n.contains("Slic3r_PE_model.config"))
+        .collect();
+    assert_eq!(ranges.len(), 2, "{:?}", written.notes);
+    assert!(
+        ranges[0].starts_with("object 2 of /3D/3dmodel.model: Metadata/Slic3r_PE_model.config is kept as it was, but its volumes' triangle ranges (firstid/lastid) number the source's 10 triangles, and the repair dropped 0 and added 2"),
+        "{}",
+        ranges[0]
+    );
+    assert!(
+        ranges[1].starts_with("object 3 of /3D/3dmodel.model: Metadata/Slic3r_PE_model.config is kept as it was, but its volumes' triangle ranges (firstid/lastid) number the source's 5 triangles, and the repair dropped 1 and added 0"),
+        "{}",
+        ranges[1]
+    );
+    let copy = entries(&std::fs::read(&out).unwrap());
+    let kept = copy
+        .iter()
+        .find(|(name, _)| name == "Metadata/Slic3r_PE_model.config")
+        .unwrap();
+    assert_eq!(kept.1, config);
+}
+
 /// An attribute value holding a NUL character (not XML, but read) is left out of the copy with a
 /// note, not written back where it would be read as part of the writer's own text.
 #[test]

@@ -16,6 +16,10 @@
 //! triangle), or none, and no other attribute. A vertex the repair adds (one copy per extra fan
 //! of a split vertex) is written like the others: 3MF vertices carry nothing but their position.
 //!
+//! PrusaSlicer's `Metadata/Slic3r_PE_model.config` gives each volume of an object a range of its
+//! triangles (`firstid`..`lastid`); it is kept as it is, so when a repair drops or adds triangles
+//! of an object the ranges no longer fit it, and a note says so.
+//!
 //! A mesh whose other children number its vertices or triangles (a beam lattice, triangle sets) is
 //! not rewritten: the repair renumbers both, and those references would point elsewhere.
 
@@ -27,7 +31,7 @@ use zip::{CompressionMethod, ZipWriter};
 
 use super::{push_int, push_number, renumber, write_atomic, Job, WriteError, Written};
 use crate::formats::threemf::model::{Content, MeshData, NONE};
-use crate::formats::threemf::package::Package;
+use crate::formats::threemf::package::{self, Package};
 use crate::formats::threemf::paint;
 use crate::formats::threemf::read_full;
 use crate::formats::ReadContext;
@@ -46,6 +50,9 @@ pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
         })?;
     Ok(job.written(Vec::new(), notes))
 }
+
+/// PrusaSlicer's per-object configuration, with each volume's range of triangles.
+const SLIC3R_MODEL_CONFIG: &str = "Metadata/Slic3r_PE_model.config";
 
 /// One mesh to rewrite: its two byte ranges in its part and their new text.
 struct Splice {
@@ -69,6 +76,7 @@ fn write_unguarded(
         )));
     }
     let mut package = Package::open(source, &cx.limits)?;
+    let ranges = package.has(&package::key(SLIC3R_MODEL_CONFIG));
     let mut notes = Vec::new();
     // Per part: its new bytes.
     let mut rewritten: Vec<(String, Vec<u8>)> = Vec::new();
@@ -113,6 +121,24 @@ fn write_unguarded(
                     "{}: {} attribute(s) of its triangles hold a NUL character, which XML does not allow: they were left out",
                     what(),
                     lost.nul
+                ));
+            }
+            // The ranges count the source's triangles in order: they fit only while every
+            // triangle is kept in its place and none is added.
+            let in_place = plan.triangles.len() == data.triangles.len()
+                && plan
+                    .triangles
+                    .iter()
+                    .enumerate()
+                    .all(|(i, t)| t.source == Some(i as u32));
+            if ranges && !in_place {
+                let kept = plan.triangles.iter().filter(|t| t.source.is_some()).count();
+                notes.push(format!(
+                    "{}: {SLIC3R_MODEL_CONFIG} is kept as it was, but its volumes' triangle ranges (firstid/lastid) number the source's {} triangles, and the repair dropped {} and added {}: PrusaSlicer may refuse the copy (\"Found invalid triangle id\") or give the object's parts the wrong triangles - check its parts when opening the copy in PrusaSlicer",
+                    what(),
+                    data.triangles.len(),
+                    data.triangles.len().saturating_sub(kept),
+                    plan.triangles.len() - kept
                 ));
             }
             splices.push(Splice {
