@@ -268,6 +268,131 @@ fn obj_copy_of_a_bare_cr_file_keeps_its_library_and_texture() {
     );
 }
 
+/// Libraries and textures reached through `../` (shared folders of the scanned tree) are copied
+/// beside the file that names them, under their file names, and the names are rewritten: the
+/// copy's `mtllib ../materials/shared.mtl` becomes `mtllib shared.mtl`, the copied `box.mtl`'s
+/// `map_Kd ../textures/wood.png` becomes `map_Kd wood.png` (the same file `shared.mtl` names as
+/// `../textures/wood.png` from its own folder: copied once), and `../other/box.mtl`, whose name is
+/// taken by the copy's own `box.mtl`, becomes `box-1.mtl`. A texture below a moved library's folder
+/// keeps its name (`metal.png`), one below the OBJ's folder its place (`tex/local.png`). What
+/// cannot be copied (a missing library, a texture outside the tree) keeps its name, with a note.
+/// The copy, read again from the output tree alone, finds every library.
+#[test]
+fn obj_copy_brings_libraries_and_textures_from_shared_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    for d in ["models/tex", "materials", "textures", "other"] {
+        std::fs::create_dir_all(tree.join(d)).unwrap();
+    }
+    std::fs::write(dir.path().join("outside.png"), "outside the tree").unwrap();
+    std::fs::write(
+        tree.join("models/box.mtl"),
+        "newmtl wood\r\nKd 1 1 1\r\nmap_Kd ../textures/wood.png\r\nmap_Ks -s 1 1 1 tex/local.png\r\nbump ../../outside.png\r\n",
+    )
+    .unwrap();
+    std::fs::write(tree.join("models/tex/local.png"), "local").unwrap();
+    std::fs::write(
+        tree.join("materials/shared.mtl"),
+        "newmtl metal\nKd 0.5 0.5 0.5\nmap_Kd metal.png\nmap_Ks ../textures/wood.png\n",
+    )
+    .unwrap();
+    std::fs::write(tree.join("materials/metal.png"), "metal").unwrap();
+    std::fs::write(tree.join("textures/wood.png"), "wood").unwrap();
+    std::fs::write(tree.join("other/box.mtl"), "newmtl other\nKd 0 1 0\n").unwrap();
+    let source = tree.join("models/box.obj");
+    std::fs::write(
+        &source,
+        "mtllib box.mtl\nmtllib ../materials/shared.mtl\nmtllib ../materials/missing.mtl\nmtllib ../other/box.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl wood\nf 1 2 3\n",
+    )
+    .unwrap();
+    let before = hash_tree(&tree);
+    let mesh = read(&source, Format::Obj, &cx(&tree)).unwrap().remove(0);
+    let out = dir.path().join("out/models");
+    let written = write_copy(
+        &source,
+        Format::Obj,
+        &[Some(identity(&mesh))],
+        &out.join("box.obj"),
+        &cx(&tree),
+        None,
+    )
+    .unwrap();
+    assert_eq!(hash_tree(&tree), before, "the sources changed");
+    let files: BTreeSet<String> = written
+        .files
+        .iter()
+        .map(|f| f.strip_prefix(&out).unwrap().to_string_lossy().into_owned())
+        .collect();
+    let expected: BTreeSet<String> = [
+        "box.obj",
+        "box.mtl",
+        "wood.png",
+        "tex/local.png",
+        "shared.mtl",
+        "metal.png",
+        "box-1.mtl",
+    ]
+    .map(String::from)
+    .into();
+    assert_eq!(files, expected);
+    let text = std::fs::read_to_string(out.join("box.obj")).unwrap();
+    assert_eq!(
+        lines_with(&text, "mtllib"),
+        [
+            "mtllib box.mtl",
+            "mtllib shared.mtl",
+            "mtllib ../materials/missing.mtl",
+            "mtllib box-1.mtl"
+        ]
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("box.mtl")).unwrap(),
+        "newmtl wood\r\nKd 1 1 1\r\nmap_Kd wood.png\r\nmap_Ks -s 1 1 1 tex/local.png\r\nbump ../../outside.png\r\n"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("shared.mtl")).unwrap(),
+        "newmtl metal\nKd 0.5 0.5 0.5\nmap_Kd metal.png\nmap_Ks wood.png\n"
+    );
+    for (file, bytes) in [
+        ("wood.png", "wood"),
+        ("tex/local.png", "local"),
+        ("metal.png", "metal"),
+        ("box-1.mtl", "newmtl other\nKd 0 1 0\n"),
+    ] {
+        assert_eq!(
+            std::fs::read_to_string(out.join(file)).unwrap(),
+            bytes,
+            "{file}"
+        );
+    }
+    assert_eq!(written.notes.len(), 2, "{:?}", written.notes);
+    assert!(
+        written.notes[0].starts_with("texture `../../outside.png` (named in `box.mtl`) is not copied: its path is absolute or leaves the scanned tree"),
+        "{:?}",
+        written.notes
+    );
+    assert!(
+        written.notes[1].starts_with(
+            "material library `../materials/missing.mtl` is not copied: there is no such file"
+        ),
+        "{:?}",
+        written.notes
+    );
+    // Read from the output tree alone, the copy finds its libraries (only the missing one is
+    // noted, as in the source).
+    let again = read(&out.join("box.obj"), Format::Obj, &cx(&out)).unwrap();
+    let mtl_notes: Vec<&String> = again[0]
+        .notes
+        .iter()
+        .filter(|n| n.contains("material library"))
+        .collect();
+    assert_eq!(mtl_notes.len(), 1, "{mtl_notes:?}");
+    assert!(
+        mtl_notes[0].contains("`../materials/missing.mtl`"),
+        "{mtl_notes:?}"
+    );
+}
+
 /// A textured OBJ cube in two groups and materials, with an unreferenced vertex; quad 0 flipped
 /// whole (written back as the reversed quad), one triangle of quad 1 flipped (written as
 /// triangles), one triangle of quad 2 dropped and filled, a vertex copy on quad 3.

@@ -3,19 +3,27 @@
 //! flipped face), then the faces in order with `o`/`g`/`s`/`usemtl` re-emitted where they change.
 //! A polygon that survives whole is written as the polygon (reversed when flipped); otherwise its
 //! surviving triangles are. Hole fills follow the faces of their neighbour's group and material.
-//! `mtllib` is kept, and the libraries and the textures they name are copied next to the copy
-//! (only files inside the source's folder). Comments, points and lines are not kept.
+//! `mtllib` is kept, and the libraries and the textures they name are copied next to the copy: a
+//! file inside the source's folder keeps its place and its name; one reached through `../` (a
+//! shared `../materials/` or `../textures/` folder of the scanned tree) is copied beside the file
+//! that names it, under its file name (numbered when that is taken), and the name in the copy's
+//! `mtllib` or the copied library's `map_*` line is rewritten to it. Nothing outside the scanned
+//! tree is read ([`contain`]); what cannot be copied (outside the tree, missing, not a file) keeps
+//! its name, and a note says so. Comments, points and lines are not kept.
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
+use rustc_hash::FxHashMap;
+
 use super::{
     normal_sums, polygon_corner, push_int, push_number, renumber, write_atomic, Item, Job,
     Polygons, WriteError, Written,
 };
-use crate::formats::obj::{read_full, Detail, State};
-use crate::formats::{contain, text, ReadContext};
+use crate::formats::contain::{self, Location, Unresolved};
+use crate::formats::obj::{library, library_names, read_full, Detail, NotRead, State};
+use crate::formats::{text, ReadContext};
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
@@ -25,19 +33,19 @@ pub fn write(mut job: Job<'_>) -> Result<Written, WriteError> {
         Some((mesh, retained)) => retained.take::<Detail>().map(|detail| (mesh, detail)),
         None => None,
     };
-    let side = copy(job.source, job.single()?, job.out, job.cx, kept)?;
-    Ok(job.written(side, Vec::new()))
+    let (side, notes) = copy(job.source, job.single()?, job.out, job.cx, kept)?;
+    Ok(job.written(side, notes))
 }
 
 /// `kept`: the mesh and detail the scan's read kept of `source`; without them the source is read
-/// again.
+/// again. Returns the side files written and the notes on what could not be copied.
 fn copy(
     source: &Path,
     plan: &Plan,
     out: &Path,
     cx: &ReadContext,
     kept: Option<(&Mesh, Box<Detail>)>,
-) -> Result<Vec<PathBuf>, WriteError> {
+) -> Result<(Vec<PathBuf>, Vec<String>), WriteError> {
     let read;
     let (mesh, detail): (&Mesh, &Detail) = match &kept {
         Some((mesh, detail)) => (mesh, detail),
@@ -157,13 +165,15 @@ fn copy(
         faces.push('\n');
     }
 
+    // The libraries and textures first: a library copied under a new name is named so.
+    let sides = copy_materials(source, out, &detail.mtllibs, &cx.root)?;
     let mut text = String::with_capacity(faces.len() + 40 * plan.used_vertices.len());
     text.push_str("# repaired by meshvet");
     if plan.changes() {
         let _ = write!(text, ": {}", plan.summary());
     }
     text.push('\n');
-    for lib in &detail.mtllibs {
+    for lib in &sides.mtllibs {
         let _ = writeln!(text, "mtllib {lib}");
     }
     for (v, &used) in plan.used_vertices.iter().enumerate() {
@@ -192,8 +202,14 @@ fn copy(
     }
     text.push_str(&faces);
     write_atomic(out, text.as_bytes())?;
-
-    copy_materials(source, out, &detail.mtllibs, &cx.root)
+    let mut notes = sides.notes;
+    if sides.more_notes > 0 {
+        notes.push(format!(
+            "{} more material libraries or textures were not copied",
+            sides.more_notes
+        ));
+    }
+    Ok((sides.written, notes))
 }
 
 fn parse3(text: &str) -> Option<[f64; 3]> {
@@ -226,63 +242,314 @@ fn switch_state(out: &mut String, state: &mut State, wanted: &State) {
     emit("s", &mut state.smoothing, &wanted.smoothing, "off");
 }
 
-/// Copies each material library, and the texture files it names, next to the copy (same relative
-/// names), when they are files inside the source's folder, each once however often it is named.
-/// What is read follows the readers' containment rule ([`contain`]): a library or texture that is
-/// a link to a file outside the scanned tree `root` is not read, so not copied either.
+/// At most this many notes on files not copied; the rest are counted in one.
+const SIDE_NOTES: usize = 20;
+
+/// The material libraries and textures of one copy, as they are copied.
+struct Sides {
+    /// The copy's `mtllib` arguments, in the source's order (names rewritten where needed).
+    mtllibs: Vec<String>,
+    /// The files written beside the copy.
+    written: Vec<PathBuf>,
+    notes: Vec<String>,
+    more_notes: usize,
+}
+
+/// What copying the side files of one copy needs as it goes.
+struct Copier<'a> {
+    /// The copy's folder.
+    to: &'a Path,
+    location: &'a Location,
+    /// Each place in the copy's folder (relative) that a file goes to, and that file (real path).
+    taken: FxHashMap<PathBuf, PathBuf>,
+    /// Names looked up already, per folder they are named from: their new names (`None`: not
+    /// copied, the name stays).
+    named: FxHashMap<(PathBuf, String), Option<String>>,
+    sides: Sides,
+}
+
+impl Copier<'_> {
+    fn note(&mut self, note: String) {
+        if self.sides.notes.len() < SIDE_NOTES {
+            self.sides.notes.push(note);
+        } else {
+            self.sides.more_notes += 1;
+        }
+    }
+
+    /// A free place for `real` in the copy's folder `base` (relative), under its file name
+    /// (whitespace, `:` and `\` made `_`, so that `mtllib` and `map_*` read it back as one
+    /// relative name), numbered when another file has that place; a place `real` has already is
+    /// reused.
+    fn beside(&mut self, base: &Path, real: &Path) -> PathBuf {
+        let file: String = real
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+            .chars()
+            .map(|c| {
+                if c.is_whitespace() || c == ':' || c == '\\' {
+                    '_'
+                } else {
+                    c
+                }
+            })
+            .collect();
+        let (stem, ext) = match file.rsplit_once('.') {
+            Some((s, e)) if !s.is_empty() => (s.to_owned(), format!(".{e}")),
+            _ => (file.clone(), String::new()),
+        };
+        let mut place = base.join(&file);
+        let mut n = 1;
+        while self.taken.get(&place).is_some_and(|p| p != real) {
+            place = base.join(format!("{stem}-{n}{ext}"));
+            n += 1;
+        }
+        place
+    }
+
+    /// Takes `place` (relative to the copy's folder) for `real`; `false` when `real` is there
+    /// already (copied under another spelling of its name).
+    fn take(&mut self, place: &Path, real: &Path) -> bool {
+        if self.taken.get(place).is_some_and(|p| p == real) {
+            return false;
+        }
+        self.taken.insert(place.to_path_buf(), real.to_path_buf());
+        true
+    }
+
+    /// Writes `bytes` at `place` (relative to the copy's folder), unless that is `real` itself
+    /// (a source is never written), and lists it at `slot` of the files written (a library
+    /// before the textures it names).
+    fn write(
+        &mut self,
+        slot: usize,
+        place: &Path,
+        real: &Path,
+        bytes: &[u8],
+    ) -> Result<(), WriteError> {
+        let to = self.to.join(place);
+        if to.canonicalize().is_ok_and(|to| to == real) {
+            return Ok(());
+        }
+        write_atomic(&to, bytes)?;
+        let slot = slot.min(self.sides.written.len());
+        self.sides.written.insert(slot, to);
+        Ok(())
+    }
+}
+
+/// Why a file the copy names is not copied, in words.
+fn why_not(not: &NotRead) -> String {
+    match not {
+        NotRead::Refused => "its path is absolute or leaves the scanned tree".into(),
+        NotRead::Unresolved(Unresolved::Missing) => "there is no such file".into(),
+        NotRead::Unresolved(Unresolved::Outside) => {
+            "it resolves, through a symbolic link, outside the scanned tree".into()
+        }
+        NotRead::Unresolved(Unresolved::NotAFile(_)) => "it is not a regular file".into(),
+        NotRead::Unresolved(Unresolved::Io(e)) => format!("it cannot be looked at ({e})"),
+    }
+}
+
+/// Copies each material library, and the texture files it names, beside the copy (see the module
+/// documentation), each once however often it is named. What is read follows the readers'
+/// containment rule ([`contain`]): a library or texture outside the scanned tree `root`, also
+/// through a link, is not read, so not copied either.
 fn copy_materials(
     source: &Path,
     out: &Path,
     mtllibs: &[String],
     root: &Path,
-) -> Result<Vec<PathBuf>, WriteError> {
+) -> Result<Sides, WriteError> {
     let to = out.parent().unwrap_or(Path::new(""));
-    let Ok(location) = contain::Location::new(source, root) else {
-        return Ok(Vec::new()); // the source's read could not resolve it either
+    let mut sides = Sides {
+        mtllibs: mtllibs.to_vec(),
+        written: Vec::new(),
+        notes: Vec::new(),
+        more_notes: 0,
     };
-    // The real file behind `rel` (inside the source's folder), if it may be read.
-    let real = |rel: &Path| {
-        let joined = contain::join(&rel.to_string_lossy(), &location).ok()?;
-        contain::resolve(&joined, &location).ok()
+    if mtllibs.is_empty() {
+        return Ok(sides);
+    }
+    let location = match contain::Location::new(source, root) {
+        Ok(location) => location,
+        Err(e) => {
+            sides.notes.push(format!(
+                "the material libraries are not copied: {e}; the copy names them as the source does"
+            ));
+            return Ok(sides);
+        }
     };
-    let mut done = HashSet::new();
-    let mut written = Vec::new();
+    let mut copier = Copier {
+        to,
+        location: &location,
+        taken: FxHashMap::default(),
+        named: FxHashMap::default(),
+        sides,
+    };
+    let mut lines = Vec::with_capacity(mtllibs.len());
     for lib in mtllibs {
-        let names: Vec<&str> = if inside(lib).and_then(|rel| real(&rel)).is_some() {
-            vec![lib.as_str()]
+        let names = library_names(lib, &location);
+        let mut line = Vec::with_capacity(names.len());
+        for name in &names {
+            let new = library_copy(&mut copier, name)?;
+            line.push(new.unwrap_or_else(|| (*name).to_owned()));
+        }
+        lines.push(if names.len() == 1 && line[0] == names[0] {
+            lib.clone()
         } else {
-            lib.split_ascii_whitespace().collect()
-        };
-        for name in names {
-            let Some(rel) = inside(name) else { continue };
-            if !done.insert(rel.clone()) {
-                continue;
-            }
-            // A missing .mtl was a note when scanned; the copy is as good as the source.
-            let Some(bytes) = real(&rel).and_then(|path| std::fs::read(path).ok()) else {
-                continue;
-            };
-            write_atomic(&to.join(&rel), &bytes)?;
-            written.push(to.join(&rel));
-            let mtl_folder = rel.parent().map(Path::to_path_buf).unwrap_or_default();
-            for texture in textures(&bytes) {
-                let Some(t) = inside(&texture) else { continue };
-                let rel = mtl_folder.join(t);
-                // Only inside the source's folder, after `..` in the library's own folder.
-                let Some(rel) = inside(&rel.to_string_lossy()) else {
-                    continue;
-                };
-                if !done.insert(rel.clone()) {
-                    continue;
-                }
-                if let Some(path) = real(&rel) {
-                    super::copy_beside(&path, &to.join(&rel))?;
-                    written.push(to.join(&rel));
-                }
+            line.join(" ")
+        });
+    }
+    copier.sides.mtllibs = lines;
+    Ok(copier.sides)
+}
+
+/// Copies the library the copy's `mtllib` names `name` (and its textures); its name in the copy,
+/// `None` when not copied.
+fn library_copy(copier: &mut Copier<'_>, name: &str) -> Result<Option<String>, WriteError> {
+    let key = (PathBuf::new(), name.to_owned());
+    if let Some(done) = copier.named.get(&key) {
+        return Ok(done.clone());
+    }
+    let location = copier.location;
+    // `\\` separates folders in names written on Windows.
+    let real = match library(&name.replace('\\', "/"), location) {
+        Ok(real) => real,
+        Err(not) => {
+            copier.note(format!(
+                "material library `{name}` is not copied: {}; the copy names it as the source does",
+                why_not(&not)
+            ));
+            copier.named.insert(key, None);
+            return Ok(None);
+        }
+    };
+    // Below the source's folder: the same place and name. Through `../`: beside the copy.
+    let place = match inside(name) {
+        Some(rel) if copier.taken.get(&rel).is_none_or(|p| *p == real) => rel,
+        _ => copier.beside(Path::new(""), &real),
+    };
+    // Whether its folder in the copy is not its folder in the source (relative to the OBJ).
+    let moved = inside(name).is_none_or(|rel| rel.parent() != place.parent());
+    let new = place.to_string_lossy().replace('\\', "/");
+    copier.named.insert(key, Some(new.clone()));
+    // Taken before the textures are placed, so that none of them takes it.
+    if !copier.take(&place, &real) {
+        return Ok(Some(new));
+    }
+    let slot = copier.sides.written.len();
+    let bytes = match std::fs::read(&real) {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            copier.note(format!(
+                "material library `{name}` is not copied: it cannot be read ({e}); the copy names it as the source does"
+            ));
+            copier.named.insert((PathBuf::new(), name.to_owned()), None);
+            return Ok(None);
+        }
+    };
+    // Textures are named from the library's folder: in the source, the folder of the name as
+    // written (before links); in the copy, the folder of its place.
+    let joined = contain::join(&name.replace('\\', "/"), location).unwrap_or_else(|_| real.clone());
+    let from = joined.parent().map(Path::to_path_buf).unwrap_or_default();
+    let base = place.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut renamed: FxHashMap<String, String> = FxHashMap::default();
+    for texture in textures(&bytes) {
+        if let Some(new) = texture_copy(copier, name, &texture, &from, &base, moved)? {
+            if new != texture {
+                renamed.insert(texture, new);
             }
         }
     }
-    Ok(written)
+    let bytes = if renamed.is_empty() {
+        bytes
+    } else {
+        rename_textures(&bytes, &renamed)
+    };
+    copier.write(slot, &place, &real, &bytes)?;
+    Ok(Some(new))
+}
+
+/// Copies the texture a library (named `library` in the OBJ) names `name`, looked up from `from`
+/// (the library's folder in the source tree) and copied relative to `base` (the library's folder
+/// in the copy, relative to the copy's folder). `moved`: the library is not at its source place
+/// relative to the copy. Returns the texture's name in the copied library, `None` when not copied.
+fn texture_copy(
+    copier: &mut Copier<'_>,
+    library: &str,
+    name: &str,
+    from: &Path,
+    base: &Path,
+    moved: bool,
+) -> Result<Option<String>, WriteError> {
+    let key = (from.to_path_buf(), name.to_owned());
+    if let Some(done) = copier.named.get(&key) {
+        return Ok(done.clone());
+    }
+    let location = Location {
+        folder: from.to_path_buf(),
+        ..copier.location.clone()
+    };
+    let found = if name.contains(':') {
+        Err(NotRead::Refused)
+    } else {
+        contain::join(&name.replace('\\', "/"), &location)
+            .map_err(|_| NotRead::Refused)
+            .and_then(|joined| contain::resolve(&joined, &location).map_err(NotRead::Unresolved))
+    };
+    let real = match found {
+        Ok(real) => real,
+        Err(not) => {
+            copier.note(format!(
+                "texture `{name}` (named in `{library}`) is not copied: {}; the copied library names it as the source does",
+                why_not(&not)
+            ));
+            copier.named.insert(key, None);
+            return Ok(None);
+        }
+    };
+    // The same relative name works when the texture keeps its place relative to the library: it
+    // lies below the library's folder, or the library kept its place and the texture is inside
+    // the source's folder.
+    let keep = if moved {
+        inside(name).map(|rel| base.join(rel))
+    } else {
+        inside(&base.join(name).to_string_lossy())
+    };
+    let (place, new) = match keep {
+        Some(place) if copier.taken.get(&place).is_none_or(|p| *p == real) => {
+            (place, name.to_owned())
+        }
+        _ => {
+            let place = copier.beside(base, &real);
+            let file = place
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            (place, file)
+        }
+    };
+    copier.named.insert(key, Some(new.clone()));
+    if !copier.take(&place, &real) {
+        return Ok(Some(new));
+    }
+    let bytes = match std::fs::read(&real) {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            copier.note(format!(
+                "texture `{name}` (named in `{library}`) is not copied: it cannot be read ({e}); the copied library names it as the source does"
+            ));
+            copier
+                .named
+                .insert((from.to_path_buf(), name.to_owned()), None);
+            return Ok(None);
+        }
+    };
+    let slot = copier.sides.written.len();
+    copier.write(slot, &place, &real, &bytes)?;
+    Ok(Some(new))
 }
 
 /// A relative path that stays inside its folder, normalised; `None` otherwise.
@@ -304,6 +571,53 @@ fn inside(name: &str) -> Option<PathBuf> {
     (!out.as_os_str().is_empty() && !name.contains(':')).then_some(out)
 }
 
+/// An MTL with the texture names of its `map_*` (and `bump`, ...) lines replaced as `renamed`
+/// says (the line's last word, as [`textures`] reads it); every other byte kept, line ends too.
+fn rename_textures(mtl: &[u8], renamed: &FxHashMap<String, String>) -> Vec<u8> {
+    let mut out = Vec::with_capacity(mtl.len() + 64);
+    let mut rest = mtl;
+    while !rest.is_empty() {
+        let end = rest
+            .iter()
+            .position(|&b| b == b'\n' || b == b'\r')
+            .unwrap_or(rest.len());
+        let line = &rest[..end];
+        match std::str::from_utf8(line)
+            .ok()
+            .and_then(|l| texture_of(l).map(|t| (l, t)))
+        {
+            Some((l, (at, t))) if renamed.contains_key(t) => {
+                out.extend_from_slice(&l.as_bytes()[..at]);
+                out.extend_from_slice(renamed[t].as_bytes());
+                out.extend_from_slice(&l.as_bytes()[at + t.len()..]);
+            }
+            _ => out.extend_from_slice(line),
+        }
+        let ends = match rest.get(end..end + 2) {
+            Some(b"\r\n") => 2,
+            _ => usize::from(end < rest.len()),
+        };
+        out.extend_from_slice(&rest[end..end + ends]);
+        rest = &rest[end + ends..];
+    }
+    out
+}
+
+/// The texture file name of an MTL line (`map_*`, `bump`, `disp`, `decal`, `refl`, `norm`: its
+/// last word, option flags before it) and where it starts in the line.
+fn texture_of(line: &str) -> Option<(usize, &str)> {
+    let mut words = line.split_ascii_whitespace();
+    let key = words.next()?.to_ascii_lowercase();
+    if !(key.starts_with("map_")
+        || matches!(key.as_str(), "bump" | "disp" | "decal" | "refl" | "norm"))
+    {
+        return None;
+    }
+    let last = words.last()?;
+    let at = line.rfind(last)?;
+    Some((at, last))
+}
+
 /// The texture file names of an MTL (`map_*`, `bump`, `disp`, `decal`, `refl`), option flags
 /// skipped: the last word is the file name (names with spaces are rare). Lines end as the OBJ
 /// reader ends them (a bare CR too, [`text::lf_line_ends`]).
@@ -313,16 +627,9 @@ fn textures(mtl: &[u8]) -> Vec<String> {
     let mut seen = HashSet::new();
     let mut out = Vec::new();
     for line in mtl.lines() {
-        let mut words = line.split_ascii_whitespace();
-        let Some(key) = words.next() else { continue };
-        let key = key.to_ascii_lowercase();
-        if key.starts_with("map_")
-            || matches!(key.as_str(), "bump" | "disp" | "decal" | "refl" | "norm")
-        {
-            if let Some(last) = words.last() {
-                if seen.insert(last) {
-                    out.push(last.to_string());
-                }
+        if let Some((_, last)) = texture_of(line) {
+            if seen.insert(last) {
+                out.push(last.to_string());
             }
         }
     }
