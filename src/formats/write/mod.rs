@@ -181,12 +181,6 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> 
     written.map_err(|e| WriteError(format!("cannot write {}: {e}", path.display())))
 }
 
-/// Copies `from` (a file the source refers to) to `to` atomically, unless `to` is `from` itself.
-pub(crate) fn copy_beside(from: &Path, to: &Path) -> Result<(), WriteError> {
-    let bytes = read_side(from)?;
-    put_beside(from, &bytes, to)
-}
-
 /// The bytes of `from`, a file the source refers to.
 pub(crate) fn read_side(from: &Path) -> Result<Vec<u8>, WriteError> {
     std::fs::read(from).map_err(|e| WriteError(format!("cannot read {}: {e}", from.display())))
