@@ -48,6 +48,11 @@ const PAINT: [&str; 9] = [
 /// a few levels; 2^-64 of a triangle is far below any print's resolution).
 const MAX_DEPTH: usize = 64;
 
+/// Strings longer than this are not re-encoded. The tree read from one costs tens of bytes a code,
+/// and one attribute may be as long as a whole 3MF part: a hostile file with one flipped triangle
+/// would otherwise hold gigabytes. A slicer's brush strokes make strings of a few hundred codes.
+const MAX_CODES: usize = 1 << 18;
+
 /// Whether a triangle attribute, named as written, holds slicer paint in this encoding.
 pub fn is_paint(name: &str) -> bool {
     PAINT.contains(&name)
@@ -73,6 +78,9 @@ pub fn reorder(value: &str, order: [u8; 3]) -> Option<String> {
         return Some(String::new());
     }
     if order.iter().any(|&k| k > 2) || order[0] == order[1] || order[1] == order[2] {
+        return None;
+    }
+    if value.len() > MAX_CODES {
         return None;
     }
     let codes: Vec<u8> = value
@@ -265,6 +273,39 @@ mod tests {
     use super::*;
 
     const FLIP: [u8; 3] = [0, 2, 1];
+
+    /// A tree of triangles quartered `depth` times (every leaf unpainted), as a paint string.
+    fn quartered(depth: u32) -> String {
+        fn codes(depth: u32, out: &mut Vec<u8>) {
+            if depth == 0 {
+                out.push(0);
+            } else {
+                out.push(3);
+                for _ in 0..4 {
+                    codes(depth - 1, out);
+                }
+            }
+        }
+        let mut out = Vec::new();
+        codes(depth, &mut out);
+        out.iter()
+            .rev()
+            .map(|&c| char::from(b"0123456789ABCDEF"[usize::from(c)]))
+            .collect()
+    }
+
+    /// A valid string past [`MAX_CODES`] is not re-encoded (its tree would cost tens of bytes a
+    /// code); one below it is. Quartered 8 times: 21,845 splits and 65,536 leaves; 9 times:
+    /// 349,525 codes.
+    #[test]
+    fn paint_past_the_length_limit_is_not_re_encoded() {
+        let below = quartered(8);
+        assert_eq!(below.len(), 87_381);
+        assert!(reorder(&below, FLIP).is_some_and(|s| s.len() == below.len()));
+        let past = quartered(9);
+        assert_eq!(past.len(), 349_525);
+        assert_eq!(reorder(&past, FLIP), None);
+    }
 
     /// One side split, special side 0: child 0 `(v0, v1, m12)` has state 1 (code 4), child 1
     /// `(m12, v2, v0)` state 2 (code 8); codes child 1 first: `1 8 4`, written backwards `481`.

@@ -110,7 +110,7 @@ fn write_unguarded(
             let (vertex_text, triangle_text, lost) = mesh_text(plan, &read.meshes[m], data);
             if lost.triangles > 0 {
                 notes.push(format!(
-                    "{}: {} flipped triangle(s) lost their slicer paint ({}): a repair that flips a triangle reorders its corners, and this paint could not be re-encoded for the new order (it is not the encoding PrusaSlicer writes) - repaint them in the slicer",
+                    "{}: {} flipped triangle(s) lost their slicer paint ({}): a repair that flips a triangle reorders its corners, and this paint could not be re-encoded for the new order (it is not the encoding PrusaSlicer writes, or past meshvet's limits of 64 levels and 262,144 codes) - repaint them in the slicer",
                     what(),
                     lost.triangles,
                     lost.names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
