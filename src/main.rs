@@ -49,7 +49,9 @@ fn main() -> ExitCode {
         Command::Scan(args) => match run_scan(&args) {
             Ok(code) => code,
             Err(message) => {
-                eprintln!("meshvet: {message}");
+                // Line by line: a message may have lines of its own (what to do next).
+                let lines: Vec<_> = message.lines().map(outputs::printable).collect();
+                eprintln!("meshvet: {}", lines.join("\n"));
                 ExitCode::from(USAGE)
             }
         },
