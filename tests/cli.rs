@@ -562,6 +562,11 @@ fn control_characters_in_names_are_escaped_on_the_terminal() {
             run.stdout
         );
     }
+    // And in a refusal, which names the file.
+    let run = meshvet(tree.path(), &["scan", "m", "--csv", "m/red\u{1b}[31m.obj"]);
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(!run.stderr.contains('\u{1b}'), "{:?}", run.stderr);
+    assert!(run.stderr.contains("red\\x1b[31m.obj"), "{:?}", run.stderr);
 }
 
 #[test]
