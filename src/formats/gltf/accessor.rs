@@ -52,11 +52,6 @@ pub(crate) fn component_name(c: ComponentType) -> &'static str {
     }
 }
 
-/// What to do with a glTF whose positions are quantized (KHR_mesh_quantization): meshvet reads,
-/// checks and repairs only float positions.
-pub(crate) const DEQUANTIZE: &str = "re-export it with float positions (no mesh quantization: \
-     gltfpack -noq), or dequantize it (gltf-transform dequantize) and scan that file";
-
 /// The name glTF's JSON gives an accessor type (`VEC3`, ...).
 pub(crate) fn type_name(t: Type) -> &'static str {
     match t {
@@ -350,9 +345,10 @@ impl Data<'_> {
             (Checked::Valid(Type::Vec3), Checked::Valid(GenericComponentType(ComponentType::F32))) => {}
             (Checked::Valid(t), Checked::Valid(GenericComponentType(c))) => {
                 return Err(err(format!(
-                    "{what}: POSITION accessor is {} {}, meshvet reads FLOAT VEC3 positions (integer positions are quantized, KHR_mesh_quantization, which meshvet does not decode): {DEQUANTIZE}",
+                    "{what}: POSITION accessor is {} {}, meshvet reads FLOAT VEC3 positions (integer positions are quantized, KHR_mesh_quantization, which meshvet does not decode): {}",
                     component_name(c),
-                    type_name(t)
+                    type_name(t),
+                    super::DEQUANTIZE
                 )))
             }
             _ => {

@@ -327,10 +327,7 @@ pub fn parse_model(json: &[u8]) -> Result<Model, ReadError> {
                 "which meshvet cannot decode: export without meshopt compression"
             }
             "KHR_mesh_quantization" => {
-                dequantize = format!(
-                    "which meshvet cannot decode: {}",
-                    super::accessor::DEQUANTIZE
-                );
+                dequantize = format!("which meshvet cannot decode: {}", super::DEQUANTIZE);
                 &dequantize
             }
             _ => "which meshvet does not support: export without it",

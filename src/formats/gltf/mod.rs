@@ -34,6 +34,11 @@ use super::{ReadContext, ReadError, SideFiles};
 use crate::mesh::Mesh;
 use accessor::Data;
 
+/// What to do with a glTF whose positions are quantized (KHR_mesh_quantization): meshvet reads,
+/// checks and repairs only float positions.
+pub(crate) const DEQUANTIZE: &str = "re-export it with float positions (no mesh quantization: \
+     gltfpack -noq), or dequantize it (gltf-transform dequantize) and scan that file";
+
 /// The buffers and images a glTF or GLB file names, found as the reader finds them.
 pub(crate) const SIDE_FILES: SideFiles = SideFiles {
     names: uris,

@@ -615,7 +615,7 @@ fn rewrite_mesh(
                          decoded): {}",
                         component_name(v.component),
                         type_name(v.type_),
-                        crate::formats::gltf::accessor::DEQUANTIZE
+                        crate::formats::gltf::DEQUANTIZE
                     )));
                 }
                 for (i, &vertex) in order.iter().enumerate() {
