@@ -419,8 +419,8 @@ fn place_side(from: &Path, to: &Path, claims: &Claims) -> Result<bool, String> {
             to.display()
         )
     };
-    // A writer that cannot rename what it brings (an OBJ's libraries keep their names) claims
-    // nothing: the place is claimed here, for the staged bytes.
+    // The writers that bring files (OBJ, glTF) claim their names as they choose them; a place no
+    // writer claimed is claimed here, for the staged bytes.
     if !claims.holds(to) {
         let bytes = std::fs::read(from)
             .map_err(|e| format!("cannot read the staged {}: {e}", from.display()))?;

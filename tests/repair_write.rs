@@ -1901,8 +1901,7 @@ fn gltf_copies_in_one_folder_keep_their_own_buffers() {
 
 /// A repair never moves a side file over a different file: the output folder already holds a
 /// `props/crate.mtl` of other bytes (left by an earlier run, or another program's), so the
-/// crate's copy, which brings its library under that fixed name, fails with a note naming the
-/// file and what to do; that file keeps its bytes and no copy is put beside it.
+/// crate's copy brings its library as `crate-1.mtl` and names that; `crate.mtl` keeps its bytes.
 #[test]
 fn a_side_file_never_replaces_a_different_file() {
     let (_dir, src, out) = dirs();
@@ -1923,19 +1922,79 @@ fn a_side_file_never_replaces_a_different_file() {
         &settings,
         &meshvet::repair::plan_with,
     );
-    assert_eq!(repaired[0].copy, None);
-    let mtl = out.join("props/crate.mtl");
+    let copy = out.join("props/crate.obj");
+    assert_eq!(repaired[0].notes, Vec::<String>::new());
+    assert!(repaired[0].copy.is_some());
     assert_eq!(
-        repaired[0].notes,
-        [format!(
-            "repair failed: cannot put crate.mtl beside the copy: {} already holds a different \
-             file - remove it or repair into an empty folder - no copy written, the source is \
-             untouched",
-            mtl.display()
-        )]
+        std::fs::read_to_string(out.join("props/crate.mtl")).unwrap(),
+        "newmtl other\n"
     );
-    assert_eq!(std::fs::read_to_string(&mtl).unwrap(), "newmtl other\n");
-    assert_eq!(files_under(&out), [mtl]);
+    assert_eq!(
+        std::fs::read(out.join("props/crate-1.mtl")).unwrap(),
+        std::fs::read(src.join("props/crate.mtl")).unwrap()
+    );
+    let text = std::fs::read_to_string(&copy).unwrap();
+    assert_eq!(lines_with(&text, "mtllib"), ["mtllib crate-1.mtl"]);
+}
+
+/// Two OBJs repaired into one folder bring different libraries of one name from shared folders
+/// (`models/a.obj` names `../red/common.mtl`, `models/b.obj` `../blue/common.mtl`, each naming
+/// `../textures/paint.png` of its own), and a third names `../red/common.mtl` again. The first
+/// copy's library is `common.mtl`; the second's cannot be (a different `common.mtl` is there), so
+/// it is `common-1.mtl` and its texture `paint-1.png`, and the copy names them; the third shares
+/// the first's. Each copy, read from the output folder alone, has its own source's colour.
+#[test]
+fn obj_copies_in_one_folder_keep_their_own_libraries() {
+    let (_dir, src, out) = dirs();
+    std::fs::create_dir_all(src.join("models")).unwrap();
+    for (colour, kd) in [("red", "1 0 0"), ("blue", "0 0 1")] {
+        std::fs::create_dir_all(src.join(colour).join("textures")).unwrap();
+        std::fs::write(
+            src.join(colour).join("common.mtl"),
+            format!("newmtl paint\nKd {kd}\nmap_Kd textures/paint.png\n"),
+        )
+        .unwrap();
+        std::fs::write(src.join(colour).join("textures/paint.png"), colour).unwrap();
+    }
+    let c = cx(&src);
+    for (name, colour) in [("a", "red"), ("b", "blue"), ("c", "red")] {
+        let source = src.join("models").join(format!("{name}.obj"));
+        std::fs::write(
+            &source,
+            format!(
+                "mtllib ../{colour}/common.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl paint\nf 1 2 3\n"
+            ),
+        )
+        .unwrap();
+        let meshes = read(&source, Format::Obj, &c).unwrap();
+        let plans = [Some(identity(&meshes[0]))];
+        let copy = out.join("models").join(format!("{name}.obj"));
+        write_repaired(&source, Format::Obj, &plans, &copy, &c).unwrap();
+    }
+    let models = out.join("models");
+    for (name, library, kd, texture, colour) in [
+        ("a", "common.mtl", "1 0 0", "textures/paint.png", "red"),
+        ("b", "common-1.mtl", "0 0 1", "textures/paint-1.png", "blue"),
+        ("c", "common.mtl", "1 0 0", "textures/paint.png", "red"),
+    ] {
+        let text = std::fs::read_to_string(models.join(format!("{name}.obj"))).unwrap();
+        assert_eq!(
+            lines_with(&text, "mtllib"),
+            [format!("mtllib {library}")],
+            "{name}"
+        );
+        let mtl = std::fs::read_to_string(models.join(library)).unwrap();
+        assert_eq!(
+            mtl,
+            format!("newmtl paint\nKd {kd}\nmap_Kd {texture}\n"),
+            "{name}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(models.join(texture)).unwrap(),
+            colour
+        );
+    }
+    assert_eq!(files_under(&out).len(), 7, "{:?}", files_under(&out));
 }
 
 /// A binary STL with bytes after its last facet (a trailing newline; padding longer than a

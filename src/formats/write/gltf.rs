@@ -223,7 +223,7 @@ fn write_unguarded(
             let wanted = format!("{stem}.repaired.bin");
             let name = claims
                 .side(Path::new(&wanted), &new, true)
-                .map_err(|_| no_free_name(&wanted, claims))?;
+                .map_err(|_| claims.no_free_name(&wanted))?;
             let path = out.with_file_name(&name);
             write_atomic(&path, &new)?;
             written.push(path);
@@ -916,7 +916,7 @@ fn copy_external(
                 .unwrap_or_default();
             let name = claims
                 .side(Path::new(&file), &bytes, true)
-                .map_err(|_| no_free_name(&file, claims))?;
+                .map_err(|_| claims.no_free_name(&file))?;
             let to = folder.join(&name);
             if placed.insert(to.clone()) {
                 super::put_beside(&real, &bytes, &to)?;
@@ -928,15 +928,6 @@ fn copy_external(
         }
     }
     Ok(written)
-}
-
-/// Why a file the copy brings has no name beside it.
-fn no_free_name(file: &str, claims: &Claims) -> WriteError {
-    bad(format!(
-        "no free name for {file} in {}: that name and its numbered variants are taken by other \
-         files (or the folder cannot be read) - repair into an empty folder",
-        claims.folder().display()
-    ))
 }
 
 /// A file name as a URI reference (RFC 3986 unreserved characters kept, the rest escaped).

@@ -135,6 +135,15 @@ impl Claims {
         why.map(|()| wanted.to_path_buf())
     }
 
+    /// The error of a side file `file` that [`Claims::side`] found no name for.
+    pub fn no_free_name(&self, file: &str) -> WriteError {
+        WriteError::new(format!(
+            "no free name for {file} in {}: that name and its numbered variants are taken by \
+             other files (or the folder cannot be read) - repair into an empty folder",
+            self.folder.display()
+        ))
+    }
+
     /// Whether `path` (a final place) is claimed by these claims.
     pub fn holds(&self, path: &Path) -> bool {
         self.held.borrow().iter().any(|p| p == path)

@@ -4,12 +4,15 @@
 //! A polygon that survives whole is written as the polygon (reversed when flipped); otherwise its
 //! surviving triangles are. Hole fills follow the faces of their neighbour's group and material.
 //! `mtllib` is kept, and the libraries and the textures they name are copied next to the copy: a
-//! file inside the source's folder keeps its place and its name; one reached through `../` (a
-//! shared `../materials/` or `../textures/` folder of the scanned tree) is copied beside the file
-//! that names it, under its file name (numbered when that is taken), and the name in the copy's
-//! `mtllib` or the copied library's `map_*` line is rewritten to it. Nothing outside the scanned
-//! tree is read ([`contain`]); what cannot be copied (outside the tree, missing, not a file) keeps
-//! its name, and a note says so. Comments, points and lines are not kept.
+//! file inside the source's folder keeps its place; one reached through `../` (a shared
+//! `../materials/` or `../textures/` folder of the scanned tree) is copied beside the file that
+//! names it, under its file name. Every such name is claimed for the file's bytes in the copy's
+//! final folder ([`Claims::side`]): when a different file has it there, or another copy made in
+//! the same scan brings a different file under it, the first free numbered name in that folder
+//! is taken (`common-1.mtl`), and the name in the copy's `mtllib` or the copied library's
+//! `map_*` line is rewritten to it. Nothing outside the scanned tree is read ([`contain`]); what
+//! cannot be copied (outside the tree, missing, not a file) keeps its name, and a note says so.
+//! Comments, points and lines are not kept.
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
@@ -17,15 +20,15 @@ use std::path::{Component, Path, PathBuf};
 
 use rustc_hash::FxHashMap;
 
+use super::names::Claims;
 use super::{
     normal_sums, polygon_corner, push_int, push_number, renumber, write_atomic, Item, Job,
     Polygons, WriteError, Written,
 };
 use crate::formats::contain::{self, Location, Unresolved};
 use crate::formats::obj::{library, library_names, read_full, Detail, NotRead, State};
-use crate::formats::{text, ReadContext};
+use crate::formats::text;
 use crate::mesh::Mesh;
-use crate::repair::Plan;
 
 /// Writes the copy and, beside it, its material libraries and textures.
 pub fn write(mut job: Job<'_>) -> Result<Written, WriteError> {
@@ -33,19 +36,17 @@ pub fn write(mut job: Job<'_>) -> Result<Written, WriteError> {
         Some((mesh, retained)) => retained.take::<Detail>().map(|detail| (mesh, detail)),
         None => None,
     };
-    let (side, notes) = copy(job.source, job.single()?, job.out, job.cx, kept)?;
+    let (side, notes) = copy(&job, kept)?;
     Ok(job.written(side, notes))
 }
 
 /// `kept`: the mesh and detail the scan's read kept of `source`; without them the source is read
 /// again. Returns the side files written and the notes on what could not be copied.
 fn copy(
-    source: &Path,
-    plan: &Plan,
-    out: &Path,
-    cx: &ReadContext,
+    job: &Job<'_>,
     kept: Option<(&Mesh, Box<Detail>)>,
 ) -> Result<(Vec<PathBuf>, Vec<String>), WriteError> {
+    let (source, plan, out, cx) = (job.source, job.single()?, job.out, job.cx);
     let read;
     let (mesh, detail): (&Mesh, &Detail) = match &kept {
         Some((mesh, detail)) => (mesh, detail),
@@ -166,7 +167,7 @@ fn copy(
     }
 
     // The libraries and textures first: a library copied under a new name is named so.
-    let sides = copy_materials(source, out, &detail.mtllibs, &cx.root)?;
+    let sides = copy_materials(source, out, &detail.mtllibs, &cx.root, job.claims)?;
     let mut text = String::with_capacity(faces.len() + 40 * plan.used_vertices.len());
     text.push_str("# repaired by meshvet");
     if plan.changes() {
@@ -257,11 +258,13 @@ struct Sides {
 
 /// What copying the side files of one copy needs as it goes.
 struct Copier<'a> {
-    /// The copy's folder.
+    /// The copy's folder (its staging folder).
     to: &'a Path,
     location: &'a Location,
-    /// Each place in the copy's folder (relative) that a file goes to, and that file (real path).
-    taken: FxHashMap<PathBuf, PathBuf>,
+    /// The names claimed in the copy's final folder, which every place is relative to.
+    claims: &'a Claims,
+    /// Places written already (two files of the same bytes share a place).
+    placed: HashSet<PathBuf>,
     /// Names looked up already, per folder they are named from: their new names (`None`: not
     /// copied, the name stays).
     named: FxHashMap<(PathBuf, String), Option<String>>,
@@ -277,50 +280,18 @@ impl Copier<'_> {
         }
     }
 
-    /// A free place for `real` in the copy's folder `base` (relative), under its file name
-    /// (whitespace, `:` and `\` made `_`, so that `mtllib` and `map_*` read it back as one
-    /// relative name), numbered when another file has that place; a place `real` has already is
-    /// reused.
-    fn beside(&mut self, base: &Path, real: &Path) -> PathBuf {
-        let file: String = real
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default()
-            .chars()
-            .map(|c| {
-                if c.is_whitespace() || c == ':' || c == '\\' {
-                    '_'
-                } else {
-                    c
-                }
-            })
-            .collect();
-        let (stem, ext) = match file.rsplit_once('.') {
-            Some((s, e)) if !s.is_empty() => (s.to_owned(), format!(".{e}")),
-            _ => (file.clone(), String::new()),
-        };
-        let mut place = base.join(&file);
-        let mut n = 1;
-        while self.taken.get(&place).is_some_and(|p| p != real) {
-            place = base.join(format!("{stem}-{n}{ext}"));
-            n += 1;
-        }
-        place
+    /// Claims a place for `bytes` at `wanted` (relative to the copy's folder), or the first free
+    /// numbered name in the same folder (`wood-1.png`) when another file has it: in the final
+    /// folder, or claimed by any copy being made, this one included ([`Claims::side`]).
+    fn claim(&self, wanted: &Path, bytes: &[u8]) -> Result<PathBuf, WriteError> {
+        self.claims.side(wanted, bytes, true).map_err(|_| {
+            let file = wanted.file_name().unwrap_or_default().to_string_lossy();
+            self.claims.no_free_name(&file)
+        })
     }
 
-    /// Takes `place` (relative to the copy's folder) for `real`; `false` when `real` is there
-    /// already (copied under another spelling of its name).
-    fn take(&mut self, place: &Path, real: &Path) -> bool {
-        if self.taken.get(place).is_some_and(|p| p == real) {
-            return false;
-        }
-        self.taken.insert(place.to_path_buf(), real.to_path_buf());
-        true
-    }
-
-    /// Writes `bytes` at `place` (relative to the copy's folder), unless that is `real` itself
-    /// (a source is never written), and lists it at `slot` of the files written (a library
-    /// before the textures it names).
+    /// Writes `bytes`, read from `real`, at `place` (relative to the copy's folder) once, and
+    /// lists it at `slot` of the files written (a library before the textures it names).
     fn write(
         &mut self,
         slot: usize,
@@ -328,15 +299,44 @@ impl Copier<'_> {
         real: &Path,
         bytes: &[u8],
     ) -> Result<(), WriteError> {
-        let to = self.to.join(place);
-        if to.canonicalize().is_ok_and(|to| to == real) {
+        if !self.placed.insert(place.to_path_buf()) {
             return Ok(());
         }
-        write_atomic(&to, bytes)?;
+        let to = self.to.join(place);
+        super::put_beside(real, bytes, &to)?;
         let slot = slot.min(self.sides.written.len());
         self.sides.written.insert(slot, to);
         Ok(())
     }
+}
+
+/// The file name of `real` as a name beside the copy: whitespace, `:` and `\` made `_`, so that
+/// `mtllib` and `map_*` read it back as one relative name.
+fn plain_name(real: &Path) -> PathBuf {
+    let file: String = real
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+        .chars()
+        .map(|c| {
+            if c.is_whitespace() || c == ':' || c == '\\' {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    PathBuf::from(file)
+}
+
+/// `name` as written (`\` read as `/`) with its last part made the file name of `place`: the
+/// name of a file numbered in its own folder.
+fn renamed_file(name: &str, place: &Path) -> String {
+    let file = place.file_name().unwrap_or_default();
+    Path::new(&name.replace('\\', "/"))
+        .with_file_name(file)
+        .to_string_lossy()
+        .into_owned()
 }
 
 /// Why a file the copy names is not copied, in words.
@@ -361,6 +361,7 @@ fn copy_materials(
     out: &Path,
     mtllibs: &[String],
     root: &Path,
+    claims: &Claims,
 ) -> Result<Sides, WriteError> {
     let to = out.parent().unwrap_or(Path::new(""));
     let mut sides = Sides {
@@ -384,7 +385,8 @@ fn copy_materials(
     let mut copier = Copier {
         to,
         location: &location,
-        taken: FxHashMap::default(),
+        claims,
+        placed: HashSet::new(),
         named: FxHashMap::default(),
         sides,
     };
@@ -414,49 +416,37 @@ fn library_copy(copier: &mut Copier<'_>, name: &str) -> Result<Option<String>, W
         return Ok(done.clone());
     }
     let location = copier.location;
+    let not_copied = |copier: &mut Copier<'_>, why: String| {
+        copier.note(format!(
+            "material library `{name}` is not copied: {why}; the copy names it as the source does"
+        ));
+        copier.named.insert(key.clone(), None);
+        Ok(None)
+    };
     // `\\` separates folders in names written on Windows.
     let real = match library(&name.replace('\\', "/"), location) {
         Ok(real) => real,
-        Err(not) => {
-            copier.note(format!(
-                "material library `{name}` is not copied: {}; the copy names it as the source does",
-                why_not(&not)
-            ));
-            copier.named.insert(key, None);
-            return Ok(None);
-        }
+        Err(not) => return not_copied(copier, why_not(&not)),
     };
-    // Below the source's folder: the same place and name. Through `../`: beside the copy.
-    let place = match inside(name) {
-        Some(rel) if copier.taken.get(&rel).is_none_or(|p| *p == real) => rel,
-        _ => copier.beside(Path::new(""), &real),
-    };
-    // Whether its folder in the copy is not its folder in the source (relative to the OBJ).
-    let moved = inside(name).is_none_or(|rel| rel.parent() != place.parent());
-    let new = place.to_string_lossy().replace('\\', "/");
-    copier.named.insert(key, Some(new.clone()));
-    // Taken before the textures are placed, so that none of them takes it.
-    if !copier.take(&place, &real) {
-        return Ok(Some(new));
-    }
-    let slot = copier.sides.written.len();
     let bytes = match std::fs::read(&real) {
         Ok(bytes) => bytes,
-        Err(e) => {
-            copier.note(format!(
-                "material library `{name}` is not copied: it cannot be read ({e}); the copy names it as the source does"
-            ));
-            copier.named.insert((PathBuf::new(), name.to_owned()), None);
-            return Ok(None);
-        }
+        Err(e) => return not_copied(copier, format!("it cannot be read ({e})")),
     };
+    // Below the source's folder: the same place. Through `../`: beside the copy. Either way the
+    // folder is decided here (only the file name may be numbered), so the textures, named from
+    // the library's folder, are placed first: a renamed texture changes the library's bytes,
+    // which are claimed once final.
+    let kept = inside(name);
+    let wanted = kept.clone().unwrap_or_else(|| plain_name(&real));
+    let base = wanted.parent().map(Path::to_path_buf).unwrap_or_default();
     // Textures are named from the library's folder: in the source, the folder of the name as
     // written (before links); in the copy, the folder of its place.
     let joined = contain::join(&name.replace('\\', "/"), location).unwrap_or_else(|_| real.clone());
     let from = joined.parent().map(Path::to_path_buf).unwrap_or_default();
-    let base = place.parent().map(Path::to_path_buf).unwrap_or_default();
+    let slot = copier.sides.written.len();
     let mut renamed: FxHashMap<String, String> = FxHashMap::default();
     for texture in textures(&bytes) {
+        let moved = kept.is_none();
         if let Some(new) = texture_copy(copier, name, &texture, &from, &base, moved)? {
             if new != texture {
                 renamed.insert(texture, new);
@@ -468,6 +458,13 @@ fn library_copy(copier: &mut Copier<'_>, name: &str) -> Result<Option<String>, W
     } else {
         rename_textures(&bytes, &renamed)
     };
+    let place = copier.claim(&wanted, &bytes)?;
+    let new = match kept {
+        Some(_) if place == wanted => name.to_owned(),
+        Some(_) => renamed_file(name, &place),
+        None => place.to_string_lossy().into_owned(),
+    };
+    copier.named.insert(key, Some(new.clone()));
     copier.write(slot, &place, &real, &bytes)?;
     Ok(Some(new))
 }
@@ -488,6 +485,13 @@ fn texture_copy(
     if let Some(done) = copier.named.get(&key) {
         return Ok(done.clone());
     }
+    let not_copied = |copier: &mut Copier<'_>, why: String| {
+        copier.note(format!(
+            "texture `{name}` (named in `{library}`) is not copied: {why}; the copied library names it as the source does"
+        ));
+        copier.named.insert(key.clone(), None);
+        Ok(None)
+    };
     let location = Location {
         folder: from.to_path_buf(),
         ..copier.location.clone()
@@ -501,52 +505,32 @@ fn texture_copy(
     };
     let real = match found {
         Ok(real) => real,
-        Err(not) => {
-            copier.note(format!(
-                "texture `{name}` (named in `{library}`) is not copied: {}; the copied library names it as the source does",
-                why_not(&not)
-            ));
-            copier.named.insert(key, None);
-            return Ok(None);
-        }
+        Err(not) => return not_copied(copier, why_not(&not)),
+    };
+    let bytes = match std::fs::read(&real) {
+        Ok(bytes) => bytes,
+        Err(e) => return not_copied(copier, format!("it cannot be read ({e})")),
     };
     // The same relative name works when the texture keeps its place relative to the library: it
     // lies below the library's folder, or the library kept its place and the texture is inside
-    // the source's folder.
+    // the source's folder. Otherwise it goes beside the library under its file name.
     let keep = if moved {
         inside(name).map(|rel| base.join(rel))
     } else {
         inside(&base.join(name).to_string_lossy())
     };
-    let (place, new) = match keep {
-        Some(place) if copier.taken.get(&place).is_none_or(|p| *p == real) => {
-            (place, name.to_owned())
-        }
-        _ => {
-            let place = copier.beside(base, &real);
-            let file = place
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            (place, file)
-        }
+    let wanted = keep.clone().unwrap_or_else(|| base.join(plain_name(&real)));
+    let place = copier.claim(&wanted, &bytes)?;
+    let new = match keep {
+        Some(_) if place == wanted => name.to_owned(),
+        Some(_) => renamed_file(name, &place),
+        None => place
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned(),
     };
     copier.named.insert(key, Some(new.clone()));
-    if !copier.take(&place, &real) {
-        return Ok(Some(new));
-    }
-    let bytes = match std::fs::read(&real) {
-        Ok(bytes) => bytes,
-        Err(e) => {
-            copier.note(format!(
-                "texture `{name}` (named in `{library}`) is not copied: it cannot be read ({e}); the copied library names it as the source does"
-            ));
-            copier
-                .named
-                .insert((from.to_path_buf(), name.to_owned()), None);
-            return Ok(None);
-        }
-    };
     let slot = copier.sides.written.len();
     copier.write(slot, &place, &real, &bytes)?;
     Ok(Some(new))
