@@ -103,8 +103,19 @@ impl Baseline {
                 .filter(|r| !r.is_empty())
                 .map(str::to_owned)
                 .collect();
+            let key = (row.path, row.mesh);
+            if before.contains_key(&key) {
+                return Err(format!(
+                    "the baseline {name} has two rows for {}{}{} (an older meshvet gave two \
+                     meshes of one name in a file the same row name; now each has its own): scan \
+                     again to make a new baseline",
+                    key.0,
+                    if key.1.is_empty() { "" } else { "#" },
+                    key.1
+                ));
+            }
             before.insert(
-                (row.path, row.mesh),
+                key,
                 Before {
                     status: row.status,
                     rules,

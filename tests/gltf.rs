@@ -229,6 +229,31 @@ fn triangle_from_a_data_uri() {
     assert_eq!(meshes[0].mirrored_instances, 0);
 }
 
+/// Rows are matched by path and mesh, so meshes of one file never share a name: two named `Part`
+/// become `Part (#0)` and `Part (#1)`; one named `#2` and the unnamed mesh 2 (`#2`) become
+/// `#2 (#1)` and `#2 (#2)`; a name no other mesh has is left alone.
+#[test]
+fn meshes_sharing_a_name_get_their_index() {
+    let primitive = r#"{"primitives":[{"attributes":{"POSITION":0}}]}"#;
+    let named = |name: &str| {
+        format!(r#"{{"name":"{name}","primitives":[{{"attributes":{{"POSITION":0}}}}]}}"#)
+    };
+    let meshes = format!(
+        "[{},{},{},{},{}]",
+        named("Part"),
+        named("#2"),
+        primitive,
+        named("Part"),
+        named("Lid")
+    );
+    let read = read_ok("parts.gltf", triangle_with(&meshes, &[]));
+    let names: Vec<&str> = read.iter().map(|m| m.name.as_deref().unwrap()).collect();
+    assert_eq!(
+        names,
+        ["Part (#0)", "#2 (#1)", "#2 (#2)", "Part (#3)", "Lid"]
+    );
+}
+
 #[test]
 fn indexed_quad_from_an_external_bin() {
     let dir = tempfile::tempdir().unwrap();

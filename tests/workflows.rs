@@ -716,6 +716,87 @@ fn the_baseline_names_regressions_and_can_alone_decide_the_exit_code() {
     assert_eq!(flag_alone.code, 2, "--fail-on-regression needs --baseline");
 }
 
+/// A glTF with two meshes named `Part`, one failing (a flipped face) and one passing, compared
+/// with its own baseline: nothing got worse or better (each mesh has a row of its own name; they
+/// used to share `Part`, and the passing row was compared with the failing one's). A baseline
+/// with two rows of one path and mesh (an older meshvet's) is refused with what to do.
+#[test]
+fn meshes_of_one_name_are_compared_with_their_own_baseline_rows() {
+    // Two tetrahedra in one buffer: mesh 0's second face turned.
+    let mut bin = Vec::new();
+    for p in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]] {
+        bin.extend(p.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    for faces in [
+        [0u16, 2, 1, 0, 3, 1, 1, 2, 3, 0, 3, 2],
+        [0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2],
+    ] {
+        bin.extend(faces.iter().flat_map(|i| i.to_le_bytes()));
+    }
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": bin.len(), "uri": "parts.bin"}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 24},
+            {"buffer": 0, "byteOffset": 72, "byteLength": 24}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [0, 0, 0], "max": [1, 1, 1]},
+            {"bufferView": 1, "componentType": 5123, "count": 12, "type": "SCALAR"},
+            {"bufferView": 2, "componentType": 5123, "count": 12, "type": "SCALAR"}
+        ],
+        "meshes": [
+            {"name": "Part", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]},
+            {"name": "Part", "primitives": [{"attributes": {"POSITION": 0}, "indices": 2}]}
+        ],
+        "nodes": [{"mesh": 0}, {"mesh": 1, "translation": [3, 0, 0]}],
+        "scenes": [{"nodes": [0, 1]}]
+    });
+    let dir = tree(&[("m/parts.gltf", &doc.to_string())]);
+    write(dir.path(), "m/parts.bin", &bin);
+    let old = meshvet(dir.path(), &["scan", "m", "--csv", "old.csv"]);
+    assert_eq!(old.code, 1, "mesh 0 fails: {}", old.stdout);
+    let csv = std::fs::read_to_string(dir.path().join("old.csv")).unwrap();
+    let rows: Vec<(&str, &str)> = csv
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            (cells[1], cells[3])
+        })
+        .collect();
+    assert_eq!(rows, [("Part (#0)", "fail"), ("Part (#1)", "pass")]);
+    let same = meshvet(
+        dir.path(),
+        &["scan", "m", "--baseline", "old.csv", "--fail-on-regression"],
+    );
+    assert_eq!(same.code, 0, "{}", same.stdout);
+    assert!(
+        same.stdout
+            .contains("since old.csv: 0 got worse, 0 got better"),
+        "{}",
+        same.stdout
+    );
+    // An older meshvet's rows: both named `Part`.
+    write(
+        dir.path(),
+        "older.csv",
+        csv.replace("Part (#0)", "Part")
+            .replace("Part (#1)", "Part")
+            .as_bytes(),
+    );
+    let older = meshvet(dir.path(), &["scan", "m", "--baseline", "older.csv"]);
+    assert_eq!(older.code, 2, "{}", older.stdout);
+    assert!(
+        older.stderr.contains("has two rows for parts.gltf#Part")
+            && older.stderr.contains("scan again to make a new baseline"),
+        "{}",
+        older.stderr
+    );
+}
+
 #[test]
 fn three_shards_merged_equal_the_unsharded_scan() {
     let dir = tree(&[]);

@@ -239,6 +239,30 @@ pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, 
     (format.entry().read)(path, cx).map(fitted)
 }
 
+/// Gives the meshes of one file distinct names: each mesh whose name another shares gets
+/// ` (TAG)` appended, `tag(i)` being unique per mesh (glTF: `#index`; 3MF: `#id`). Report rows
+/// are matched by path and mesh (a baseline, the page's links), so no two may share both. Repeated
+/// while names still meet (a mesh may be named `Part (#1)` already), a few rounds at most.
+pub(crate) fn distinct_names(meshes: &mut [Mesh], tag: impl Fn(usize) -> String) {
+    for _ in 0..8 {
+        let mut uses: std::collections::HashMap<String, usize> = Default::default();
+        for mesh in meshes.iter() {
+            *uses
+                .entry(mesh.name.clone().unwrap_or_default())
+                .or_default() += 1;
+        }
+        if uses.len() == meshes.len() {
+            return;
+        }
+        for (i, mesh) in meshes.iter_mut().enumerate() {
+            let name = mesh.name.clone().unwrap_or_default();
+            if uses[&name] > 1 {
+                mesh.name = Some(format!("{name} ({})", tag(i)));
+            }
+        }
+    }
+}
+
 /// The meshes with their arrays cut to their size. A reader that pushes as it parses, or reserves
 /// what a header declares (up to a cap) and then grows, leaves up to twice a mesh's memory
 /// allocated, and a scan holds the mesh through its whole analysis (a 5M-face binary PLY: 80 MB

@@ -182,7 +182,8 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
 
     let mut scratch = Vec::new();
     let mut totals = Totals::default();
-    root.meshes
+    let mut meshes = root
+        .meshes
         .iter()
         .zip(notes)
         .enumerate()
@@ -192,7 +193,10 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
             out.notes.splice(0..0, notes);
             Ok(out)
         })
-        .collect()
+        .collect::<Result<Vec<Mesh>, ReadError>>()?;
+    // Two meshes named `Part` (or one named `#1` and the unnamed mesh 1) get their index.
+    super::distinct_names(&mut meshes, |m| format!("#{m}"));
+    Ok(meshes)
 }
 
 /// Refuses a triangle primitive whose data is compressed by an extension meshvet cannot decode

@@ -28,7 +28,6 @@ pub(crate) mod package;
 pub(crate) mod paint;
 mod xml;
 
-use std::collections::BTreeMap;
 use std::io::BufReader;
 use std::path::Path;
 
@@ -350,23 +349,15 @@ fn assemble(
         }
     }
     // Names that two meshes share get their object's id.
-    let mut uses: BTreeMap<String, usize> = BTreeMap::new();
-    for mesh in &meshes {
-        *uses
-            .entry(mesh.name.clone().unwrap_or_default())
-            .or_default() += 1;
-    }
-    for (mesh, &(p, o)) in meshes.iter_mut().zip(&sources) {
-        let name = mesh.name.clone().unwrap_or_default();
-        if uses[&name] > 1 {
-            let id = models[p].1.objects[o].id;
-            mesh.name = Some(if p == 0 {
-                format!("{name} (#{id})")
-            } else {
-                format!("{name} ({}#{id})", names[p])
-            });
+    super::distinct_names(&mut meshes, |i| {
+        let (p, o) = sources[i];
+        let id = models[p].1.objects[o].id;
+        if p == 0 {
+            format!("#{id}")
+        } else {
+            format!("{}#{id}", names[p])
         }
-    }
+    });
     Ok(Read {
         meshes,
         sources,
