@@ -181,11 +181,28 @@ impl Settings {
         self
     }
 
-    /// The repair options these settings ask for (welding as the analysis does).
+    /// The repair options these settings ask for (welding as the analysis does). A repair runs
+    /// only while a rule it answers is on: a rule set to `off` says that defect is fine for these
+    /// assets (`hole = "off"` in `configs/realtime.toml`: open meshes are meant), so a copy made
+    /// for another finding keeps it (its holes stay open).
     pub fn repair_options(&self) -> crate::repair::Options {
+        let on = |rule: Rule| self.severities.get(rule) != Severity::Off;
+        let r = &self.repair;
         crate::repair::Options {
+            drop_invalid_faces: r.drop_invalid_faces
+                && r.drop_degenerate_faces
+                && on(Rule::InvalidVertex),
+            drop_degenerate_faces: r.drop_degenerate_faces && on(Rule::DegenerateFace),
+            drop_duplicate_faces: r.drop_duplicate_faces && on(Rule::DuplicateFace),
+            split_nonmanifold: r.split_nonmanifold
+                && (on(Rule::NonManifoldEdge) || on(Rule::NonManifoldVertex)),
+            orient_faces: r.orient_faces && on(Rule::InconsistentWinding),
+            flip_inside_out: r.flip_inside_out && on(Rule::InsideOutShell),
+            fill_holes: r.fill_holes && on(Rule::Hole),
+            max_hole_edges: r.max_hole_edges,
+            drop_unreferenced_vertices: r.drop_unreferenced_vertices
+                && on(Rule::UnreferencedVertex),
             weld_tolerance: self.weld_tolerance,
-            ..self.repair.clone()
         }
     }
 
@@ -551,6 +568,8 @@ pair_budget = 7
             },
             jobs: 7,
             repair: crate::repair::Options {
+                // No key of its own: the file cannot set it.
+                drop_invalid_faces: true,
                 drop_degenerate_faces: false,
                 drop_duplicate_faces: false,
                 split_nonmanifold: false,

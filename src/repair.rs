@@ -41,6 +41,9 @@ use crate::weld::{weld, INVALID};
 /// Which repairs run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
+    /// Faces with a NaN or infinite vertex (no config key of its own: `drop_degenerate_faces`
+    /// switches both, and each runs only while its rule is on, [`crate::config::Settings`]).
+    pub drop_invalid_faces: bool,
     pub drop_degenerate_faces: bool,
     pub drop_duplicate_faces: bool,
     pub split_nonmanifold: bool,
@@ -57,6 +60,7 @@ pub struct Options {
 impl Default for Options {
     fn default() -> Options {
         Options {
+            drop_invalid_faces: true,
             drop_degenerate_faces: true,
             drop_duplicate_faces: true,
             split_nonmanifold: true,
@@ -415,13 +419,14 @@ impl<'a> Work<'a> {
         let mut counts = [0; 3];
         let welded = &self.welded;
         self.triangles.retain(|t| {
-            let kind = match FaceKind::of(&welded_face(welded, &t.corners.map(|c| c.vertex))) {
-                FaceKind::Invalid => 0,
-                FaceKind::Degenerate => 1,
-                FaceKind::Table => return true,
-            };
-            counts[kind] += usize::from(options.drop_degenerate_faces);
-            !options.drop_degenerate_faces
+            let (kind, drop) =
+                match FaceKind::of(&welded_face(welded, &t.corners.map(|c| c.vertex))) {
+                    FaceKind::Invalid => (0, options.drop_invalid_faces),
+                    FaceKind::Degenerate => (1, options.drop_degenerate_faces),
+                    FaceKind::Table => return true,
+                };
+            counts[kind] += usize::from(drop);
+            !drop
         });
         if counts.iter().any(|&n| n > 0) {
             // Table indices are positions in `triangles`: they moved.

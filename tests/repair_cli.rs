@@ -1002,3 +1002,64 @@ fn parallel_gltf_copies_in_one_folder_keep_their_own_buffers() {
     }
     assert_eq!(buffers.len(), 8, "{buffers:?}");
 }
+
+/// A repair runs only while a rule it answers is on. Under `configs/realtime.toml` (`hole = "off"`:
+/// open meshes are meant) a cube without its top passes and gets no copy; the same open box with
+/// a degenerate face (`f 1 1 2`, a `degenerate-face` warning there) gets a copy without that face,
+/// and its opening stays open: 4 border edges, 1 hole, as in the source, not filled because of
+/// the other finding. Under the default config (`hole` is a warning) the same file's copy is
+/// filled.
+#[test]
+fn repairs_whose_rules_are_off_do_not_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let open_box = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+                    f 1 4 3\nf 1 3 2\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\n\
+                    f 4 1 5\nf 4 5 8\n";
+    std::fs::create_dir_all(dir.path().join("m")).unwrap();
+    std::fs::write(dir.path().join("m/open.obj"), open_box).unwrap();
+    std::fs::write(
+        dir.path().join("m/open_degenerate.obj"),
+        format!("{open_box}f 1 1 2\n"),
+    )
+    .unwrap();
+    let realtime = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/realtime.toml");
+    let realtime = realtime.to_str().unwrap();
+    scan(
+        dir.path(),
+        &[
+            "m",
+            "--config",
+            realtime,
+            "--repair-dir",
+            "rt",
+            "--csv",
+            "rt.csv",
+        ],
+    );
+    let rows = csv_rows(&dir.path().join("rt.csv"));
+    let open = &rows[&("open.obj".to_owned(), String::new())];
+    assert_eq!(
+        (open["status"].as_str(), open["repairs"].as_str()),
+        ("pass", "")
+    );
+    let degenerate = &rows[&("open_degenerate.obj".to_owned(), String::new())];
+    assert_eq!(degenerate["status"], "warn");
+    assert_eq!(degenerate["repairs"], "drop-degenerate-faces:1");
+    assert_eq!(degenerate["status_after"], "pass");
+    let copy = dir.path().join("rt/open_degenerate.obj");
+    let (mesh, analysis) = analysed(&copy).remove(0);
+    assert_eq!(mesh.triangles.len(), 10);
+    assert_eq!((analysis.border_edges, analysis.holes()), (4, 1));
+    assert!(!dir.path().join("rt/open.obj").exists());
+
+    scan(
+        dir.path(),
+        &["m", "--repair-dir", "all", "--csv", "all.csv"],
+    );
+    let rows = csv_rows(&dir.path().join("all.csv"));
+    let degenerate = &rows[&("open_degenerate.obj".to_owned(), String::new())];
+    assert_eq!(
+        degenerate["repairs"],
+        "drop-degenerate-faces:1;fill-holes:1(2 faces)"
+    );
+}
