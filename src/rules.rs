@@ -261,15 +261,13 @@ impl Rule {
             Rule::NonManifoldVertex => a.nonmanifold_vertices,
             Rule::Hole => a.holes(),
             // Inconsistent edges are inherent to a non-orientable component (non-orientable reports
-            // those); this rule fires when some component could be wound consistently but is not.
-            Rule::InconsistentWinding => {
-                let fixable = a.components.iter().any(|c| c.orientable && !c.oriented);
-                if fixable {
-                    a.inconsistent_edges
-                } else {
-                    0
-                }
-            }
+            // those); this rule counts those of the components that could be wound consistently.
+            Rule::InconsistentWinding => a
+                .components
+                .iter()
+                .filter(|c| c.orientable)
+                .map(|c| c.inconsistent_edges)
+                .sum(),
             Rule::NonOrientable => a.components.iter().filter(|c| !c.orientable).count(),
             Rule::InsideOutShell => a.inside_out_shells(),
             Rule::Cavity => a.cavities(),
@@ -372,7 +370,7 @@ pub fn check(analysis: &Analysis, mesh: &MeshFacts, severities: &Severities) -> 
                     (Rule::SelfIntersection | Rule::IntersectingComponents, Some(i)) => format!(
                         "{} ({} faces meet others)",
                         rule.describe(count),
-                        i.involved_faces()
+                        i.involved_faces_in(rule == Rule::SelfIntersection)
                     ),
                     _ => rule.describe(count),
                 },
@@ -510,6 +508,7 @@ mod tests {
         let mobius = Component {
             orientable: false,
             oriented: false,
+            inconsistent_edges: 4,
             ..Component::default()
         };
         let mut analysis = Analysis {
@@ -520,11 +519,14 @@ mod tests {
         let facts = MeshFacts::default();
         assert_eq!(Rule::InconsistentWinding.count(&analysis, &facts), 0);
         assert_eq!(Rule::NonOrientable.count(&analysis, &facts), 1);
+        analysis.inconsistent_edges = 7;
         analysis.components.push(Component {
             orientable: true,
             oriented: false,
+            inconsistent_edges: 3,
             ..Component::default()
         });
-        assert_eq!(Rule::InconsistentWinding.count(&analysis, &facts), 4);
+        // Only the orientable component's edges: the strip's are inherent to it.
+        assert_eq!(Rule::InconsistentWinding.count(&analysis, &facts), 3);
     }
 }

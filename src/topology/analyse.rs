@@ -878,6 +878,7 @@ fn count_per_component(
     for (i, c) in components.iter_mut().enumerate() {
         c.closed = c.border_edges == 0 && c.nonmanifold_edges == 0;
         c.manifold = c.nonmanifold_edges == 0 && !split[i];
+        c.inconsistent_edges = inconsistent[i];
         c.oriented = inconsistent[i] == 0;
         c.euler = c.vertices as i64 - c.edges as i64 + c.faces as i64;
         let twice_genus = 2 - c.euler - c.holes as i64;

@@ -120,8 +120,9 @@ pub struct Intersections {
     /// The search stopped at its first pair ([`Search::first_only`]) or at its budget
     /// ([`Search::pair_budget`]): the counts are lower bounds.
     pub stopped: bool,
-    /// One bit per face: the face meets another.
-    involved: Vec<u64>,
+    /// One bit per face: the face meets another face of its component (`[0]`), of another
+    /// component (`[1]`).
+    involved: [Vec<u64>; 2],
 }
 
 impl Intersections {
@@ -132,14 +133,30 @@ impl Intersections {
 
     /// Whether face `t` meets another face.
     pub fn involves(&self, t: u32) -> bool {
-        self.involved
-            .get(t as usize / 64)
-            .is_some_and(|w| w & (1 << (t % 64)) != 0)
+        self.involved.iter().any(|bits| {
+            bits.get(t as usize / 64)
+                .is_some_and(|w| w & (1 << (t % 64)) != 0)
+        })
     }
 
     /// How many faces meet another face.
     pub fn involved_faces(&self) -> usize {
-        self.involved.iter().map(|w| w.count_ones() as usize).sum()
+        let [within, between] = &self.involved;
+        within
+            .iter()
+            .zip(between)
+            .map(|(a, b)| (a | b).count_ones() as usize)
+            .sum()
+    }
+
+    /// How many faces meet another face of their own component (`within`) or of another
+    /// component: the faces of [`Intersections::self_intersections`] or of
+    /// [`Intersections::component_pairs`].
+    pub fn involved_faces_in(&self, within: bool) -> usize {
+        self.involved[usize::from(!within)]
+            .iter()
+            .map(|w| w.count_ones() as usize)
+            .sum()
     }
 
     /// The components that component `c` meets, ascending.
@@ -273,9 +290,12 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     let numbers = surface
         .number
         .map_or(nt, |n| n.iter().map(|&x| x as usize + 1).max().unwrap_or(0));
-    let involved: Vec<AtomicU64> = (0..numbers.div_ceil(64))
-        .map(|_| AtomicU64::new(0))
-        .collect();
+    let bits = || -> Vec<AtomicU64> {
+        (0..numbers.div_ceil(64))
+            .map(|_| AtomicU64::new(0))
+            .collect()
+    };
+    let involved = [bits(), bits()];
     let stop = AtomicBool::new(false);
     let (budget, held) = search.limits(nt);
     let shared = Shared {
@@ -308,7 +328,7 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         component_pairs: tally.components,
         pairs: tally.pairs,
         stopped: stop.load(Relaxed),
-        involved: involved.into_iter().map(AtomicU64::into_inner).collect(),
+        involved: involved.map(|bits| bits.into_iter().map(AtomicU64::into_inner).collect()),
     }
 }
 
@@ -350,7 +370,8 @@ struct Shared<'a> {
     tree: &'a Tree,
     /// The flat regions ([`regions::flat_regions`]).
     regions: &'a regions::Regions,
-    involved: &'a [AtomicU64],
+    /// [`Intersections::involved`], as it is found.
+    involved: &'a [Vec<AtomicU64>; 2],
     stop: &'a AtomicBool,
     search: Search,
     /// Pairs looked at by every task, added in batches of [`BATCH`].
@@ -504,8 +525,9 @@ impl Visit for Finder<'_> {
                 s.hold(t.components_tidy);
             }
         }
+        let bits = &s.involved[usize::from(ca != cb)];
         for f in [na, nb] {
-            s.involved[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
+            bits[f as usize / 64].fetch_or(1 << (f % 64), Relaxed);
         }
         let kept = s.search.kept_pairs;
         if kept > 0 {

@@ -98,6 +98,9 @@ pub struct Component {
     pub orientable: bool,
     /// Every manifold edge is consistent as stored.
     pub oriented: bool,
+    /// Manifold edges whose two faces run them the same way (the mesh's `inconsistent_edges`,
+    /// counted in this component).
+    pub inconsistent_edges: usize,
     /// `V - E + F` of the component.
     pub euler: i64,
     /// `(2 - chi - holes) / 2`; `None` unless manifold and orientable.
