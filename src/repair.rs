@@ -23,7 +23,7 @@
 use std::rc::Rc;
 
 use robust::orient2d;
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use crate::corner_table::{CornerTable, NON_MANIFOLD};
 use crate::geometry::bounding_box;
@@ -228,6 +228,17 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
         let (edges, vertices) = work.split_nonmanifold(options);
         done.push((Kind::SplitNonManifoldEdges, edges, None));
         done.push((Kind::SplitNonManifoldVertices, vertices, None));
+        let n = work.unsplittable.len();
+        if n > 0 {
+            not_repairable.push(format!(
+                "{n} non-manifold vert{} left as {}: a fan around {} is too small for a copy of \
+                 the vertex to move beyond the weld tolerance, so the copy would weld back (lower \
+                 weld_tolerance)",
+                if n == 1 { "ex" } else { "ices" },
+                if n == 1 { "it is" } else { "they are" },
+                if n == 1 { "it" } else { "each" }
+            ));
+        }
     }
     if options.orient_faces || options.flip_inside_out {
         let (flipped, non_orientable) = work.orient(options.orient_faces);
@@ -345,6 +356,13 @@ struct Work<'a> {
     /// The table is the analysis's and the analysis found no non-manifold edge or vertex (so
     /// there is nothing to split); cleared when faces change.
     manifold: bool,
+    /// The weld tolerance: a vertex copy must end at least this far from its vertex and from the
+    /// vertex's other copies (at tolerance 0: anywhere else), or the copy read back welds onto it.
+    tolerance: f64,
+    /// The positions of the copies made of each welded vertex so far.
+    copies_of: FxHashMap<u32, Vec<[f64; 3]>>,
+    /// Welded vertices with a fan that could not be given a copy far enough away to stay apart.
+    unsplittable: FxHashSet<u32>,
 }
 
 impl<'a> Work<'a> {
@@ -383,6 +401,9 @@ impl<'a> Work<'a> {
             wound: table.is_some(),
             table,
             manifold,
+            tolerance: options.weld_tolerance,
+            copies_of: FxHashMap::default(),
+            unsplittable: FxHashSet::default(),
         }
     }
 
@@ -573,9 +594,8 @@ impl<'a> Work<'a> {
         for &t in &faces {
             for c in 3 * t..3 * t + 3 {
                 let v = table.v(c) as usize;
-                if left[v] > 1 {
+                if left[v] > 1 && self.detach_fan(table, index, &[c], nudge) {
                     left[v] -= 1;
-                    self.detach_fan(table, index, &[c], nudge);
                 }
             }
         }
@@ -646,8 +666,7 @@ impl<'a> Work<'a> {
                 // After a closed fan the other way stops at once: its first step is visited.
             }
             fans_at[v as usize] += 1;
-            if fans_at[v as usize] > 1 {
-                self.detach_fan(table, index, &fan, nudge);
+            if fans_at[v as usize] > 1 && self.detach_fan(table, index, &fan, nudge) {
                 split += 1;
             }
         }
@@ -655,10 +674,15 @@ impl<'a> Work<'a> {
     }
 
     /// Gives the corners of one fan a new welded vertex, a hair inside the fan: one new vertex per
-    /// distinct input vertex among them (each keeps its own attributes).
-    fn detach_fan(&mut self, table: &CornerTable, index: &[u32], fan: &[u32], nudge: f64) {
-        let v = table.v(fan[0]) as usize;
-        let origin = self.points[v];
+    /// distinct input vertex among them (each keeps its own attributes). The copy moves `nudge`
+    /// towards the fan's centre (at most a quarter of the way); where that leaves it within the
+    /// weld tolerance of its vertex or of another copy of it (a fan smaller than the tolerance,
+    /// two fans in one direction), it moves twice, three, four times as far, at most half the
+    /// way. Returns `false`, changing nothing, when no such place is apart from them: a copy there
+    /// would weld back when the copy is read (the vertex is then listed in `unsplittable`).
+    fn detach_fan(&mut self, table: &CornerTable, index: &[u32], fan: &[u32], nudge: f64) -> bool {
+        let v = table.v(fan[0]);
+        let origin = self.points[v as usize];
         let mut centre = [0.0; 3];
         for &c in fan {
             for k in [CornerTable::n(c), CornerTable::p(c)] {
@@ -670,7 +694,7 @@ impl<'a> Work<'a> {
         }
         let to_centre = [0, 1, 2].map(|i| centre[i] - origin[i]);
         let length = to_centre.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let step = if length > 0.0 {
+        let base = if length > 0.0 {
             nudge.min(0.25 * length) / length
         } else {
             0.0
@@ -678,14 +702,33 @@ impl<'a> Work<'a> {
         // Rounded to f32, as glTF, binary STL and most PLY files store it, so that the copy read
         // back has the very position the plan judged (a sliver shell's volume sign can hang on it),
         // unless rounding would take back half the move (a fan far smaller than an f32 step).
-        let exact = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
-        let rounded = exact.map(|x| f64::from(x as f32));
-        let moved = |p: &[f64; 3]| (0..3).map(|i| (p[i] - origin[i]).powi(2)).sum::<f64>();
-        let position = if 4.0 * moved(&rounded) >= moved(&exact) {
-            rounded
-        } else {
-            exact
+        let place = |step: f64| {
+            let exact = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
+            let rounded = exact.map(|x| f64::from(x as f32));
+            let moved = |p: &[f64; 3]| (0..3).map(|i| (p[i] - origin[i]).powi(2)).sum::<f64>();
+            if 4.0 * moved(&rounded) >= moved(&exact) {
+                rounded
+            } else {
+                exact
+            }
         };
+        let tolerance = self.tolerance;
+        let apart = |p: &[f64; 3], q: &[f64; 3]| {
+            if tolerance > 0.0 {
+                !crate::weld::closer_than(p, q, tolerance)
+            } else {
+                p != q
+            }
+        };
+        let copies = self.copies_of.get(&v).map_or(&[][..], Vec::as_slice);
+        let found = (1..=4)
+            .map(|k| place((f64::from(k) * base).min(0.5)))
+            .find(|p| apart(p, &origin) && copies.iter().all(|q| apart(p, q)));
+        let Some(position) = found else {
+            self.unsplittable.insert(v);
+            return false;
+        };
+        self.copies_of.entry(v).or_default().push(position);
         let welded = self.points.len() as u32;
         self.points.push(position);
         let mut copies: Vec<(u32, u32)> = Vec::new();
@@ -710,6 +753,7 @@ impl<'a> Work<'a> {
             corner.vertex = copy;
         }
         self.changed();
+        true
     }
 
     /// Orients every orientable component consistently, flipping the smaller side (when `flip` is

@@ -164,7 +164,7 @@ impl Rule {
             },
             Rule::InconsistentWinding => &Doc {
                 name: "inconsistent-winding",
-                summary: "two neighbouring faces wind their shared edge the same way (some faces are flipped)",
+                summary: "two neighbouring faces wind their shared edge the same way (some faces are flipped); counts the edges of components that can be wound consistently (a non-orientable one's are its own rule's)",
                 meaning: "Neighbouring faces disagree about which side is out, so back-face culling hides some of them and lighting flips.",
                 repair: "Repair re-orients each component consistently, flipping the faces that disagree with the majority.",
                 default: Severity::Error,

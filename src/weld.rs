@@ -469,7 +469,7 @@ fn weld_within(positions: &[[f64; 3]], tolerance: f64) -> Welded {
 
 /// Whether `p` and `q` are closer than `tolerance`, measured in units of the tolerance so that neither
 /// a tiny tolerance (whose square underflows) nor a huge distance (whose square overflows) decides it.
-fn closer_than(p: &[f64; 3], q: &[f64; 3], tolerance: f64) -> bool {
+pub(crate) fn closer_than(p: &[f64; 3], q: &[f64; 3], tolerance: f64) -> bool {
     let d = [0, 1, 2].map(|i| (p[i] - q[i]) / tolerance);
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < 1.0
 }

@@ -643,3 +643,95 @@ fn a_fill_that_would_cross_the_surface_is_left_open() {
         (0, Some(0))
     );
 }
+
+/// Repairs `mesh` with `options`, checks that a second repair changes nothing, and analyses the
+/// result welded as the options weld.
+fn repaired_with(mesh: &Mesh, options: &Options) -> (Plan, Analysis) {
+    let p = plan(mesh, options);
+    let out = p.apply(mesh);
+    let again = plan(&out, options);
+    assert!(!again.changes(), "a second repair changed {:?}", again.done);
+    let analysis = meshvet::analyse(
+        &out,
+        &meshvet::topology::Options {
+            weld_tolerance: options.weld_tolerance,
+            ..Default::default()
+        },
+    );
+    (p, analysis)
+}
+
+/// Three lone triangles on one vertex O: the first keeps O; the other two fans have their centres
+/// in one direction from O, (0.5, 0.5, 0) and (1, 1, 0), so both copies moved the same distance
+/// (1e-5 of the model's size) towards them land on one point and weld together again: O stayed
+/// non-manifold in the copy, and repairing the copy split it again. The second copy now moves
+/// twice as far: three components, no non-manifold vertex, a second repair changes nothing.
+#[test]
+fn copies_of_one_vertex_towards_one_direction_stay_apart() {
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [1.0, 1.0, -1.0],
+    ];
+    let mesh = Mesh::new(positions, vec![[0, 1, 2], [0, 3, 4], [0, 5, 6]]);
+    let (p, a) = repaired_with(&mesh, &Options::default());
+    assert_eq!(p.summary(), "split-non-manifold-vertices:1");
+    assert_eq!(p.new_vertices.len(), 2);
+    assert_ne!(p.new_vertices[0].position, p.new_vertices[1].position);
+    assert_eq!((a.nonmanifold_vertices, a.components.len()), (0, 3));
+}
+
+/// A bowtie (two triangles on vertex O, fan centres (1, 0.5, 0) and (-1, -0.5, 0), 1.118 from O)
+/// welded with tolerance 0.4: a copy moved a quarter of the way to its fan's centre (0.28) is
+/// within 0.4 of O and welds back onto it; moved half the way (0.56) it stays apart, and the copy
+/// has no non-manifold vertex. With sliver fans whose centres lie 0.05 from O, no copy within
+/// half the way is 0.4 from O: the vertex is left as it is, and the row says why.
+#[test]
+fn split_copies_move_beyond_the_weld_tolerance_or_are_reported() {
+    let options = Options {
+        weld_tolerance: 0.4,
+        ..Options::default()
+    };
+    let bowtie = Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [-1.0, -1.0, 0.0],
+        ],
+        vec![[0, 1, 2], [0, 3, 4]],
+    );
+    let (p, a) = repaired_with(&bowtie, &options);
+    assert_eq!(p.summary(), "split-non-manifold-vertices:1");
+    assert_eq!((a.nonmanifold_vertices, a.components.len()), (0, 2));
+
+    let slivers = Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.1, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.1, -1.0],
+        ],
+        vec![[0, 1, 2], [0, 3, 4]],
+    );
+    let (p, a) = repaired_with(&slivers, &options);
+    assert_eq!(count(&p, Kind::SplitNonManifoldVertices), 0);
+    assert!(p.new_vertices.is_empty());
+    assert_eq!(a.nonmanifold_vertices, 1);
+    assert!(
+        p.not_repairable.contains(
+            &"1 non-manifold vertex left as it is: a fan around it is too small for a copy of the \
+              vertex to move beyond the weld tolerance, so the copy would weld back (lower \
+              weld_tolerance)"
+                .to_owned()
+        ),
+        "{:?}",
+        p.not_repairable
+    );
+}
