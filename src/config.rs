@@ -396,12 +396,25 @@ pub fn suggest<'a>(name: &str, known: &[&'a str]) -> Option<&'a str> {
     closest(name, known)
 }
 
-/// The known name closest to `name` by edit distance, if it is close enough to be a typo.
+/// The known name closest to `name` by edit distance, if it is close enough to be a typo, ignoring
+/// case (`HOLE`): within a third of its length (at least 2), or a short form or plural of it
+/// (`warn` for `warning`, `cavities` for `cavity`: the names share all but the known name's last
+/// letter, and four letters at least).
 fn closest<'a>(name: &str, known: &[&'a str]) -> Option<&'a str> {
+    let name = name.to_lowercase();
+    let close = |k: &str, d: usize| {
+        let shared = name
+            .chars()
+            .zip(k.chars())
+            .take_while(|(a, b)| a == b)
+            .count();
+        let short = name.chars().count().min(k.chars().count());
+        d <= 2.max(k.len() / 3) || (shared >= 4 && shared + 1 >= short)
+    };
     known
         .iter()
-        .map(|k| (edit_distance(name, k), *k))
-        .filter(|&(d, k)| d <= 2.max(k.len() / 3))
+        .map(|k| (edit_distance(&name, k), *k))
+        .filter(|&(d, k)| close(k, d))
         .min()
         .map(|(_, k)| k)
 }
@@ -470,6 +483,31 @@ mod tests {
             "{}",
             err.message
         );
+    }
+
+    /// Short forms, plurals and capitals are typos too: each gets the name meant.
+    #[test]
+    fn short_forms_plurals_and_capitals_get_a_suggestion() {
+        for (text, meant) in [
+            ("[rules]\nhole = \"warn\"\n", "warning"),
+            ("[rules]\nhole = \"Error\"\n", "error"),
+            ("[rules]\ncavities = \"error\"\n", "cavity"),
+            ("[rules]\nHOLE = \"error\"\n", "hole"),
+            (
+                "[rules]\nself-intersections = \"error\"\n",
+                "self-intersection",
+            ),
+        ] {
+            let err = parse(text).unwrap_err();
+            assert!(
+                err.message.contains(&format!("did you mean `{meant}`?")),
+                "{text}: {}",
+                err.message
+            );
+        }
+        // Not everything is close: no suggestion for a word unlike any name.
+        let err = parse("[rules]\nhole = \"maybe\"\n").unwrap_err();
+        assert!(!err.message.contains("did you mean"), "{}", err.message);
     }
 
     #[test]
