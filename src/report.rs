@@ -256,7 +256,7 @@ impl ShellRow {
                     .get(shell.component)
                     .map_or(0, |c| c.holes),
                 genus: shell.genus,
-                volume: shell.volume,
+                volume: shell.volume.filter(|v| v.is_finite()),
                 depth: shell.depth,
                 role: shell.role,
                 inside_out: shell.inside_out,
@@ -330,8 +330,10 @@ impl Row {
             solids: Some(a.solids()),
             euler: Some(a.euler),
             genus: a.genus(),
-            volume: a.volume(),
-            area: Some(a.area),
+            // Past about 1e154 a coordinate's square overflows: a number that is not finite is
+            // not defined, an empty cell as SPEC 9 says (not `NaN` or `inf`).
+            volume: a.volume().filter(|v| v.is_finite()),
+            area: Some(a.area).filter(|x| x.is_finite()),
             bbox_min_x: bbox(0, 0),
             bbox_min_y: bbox(0, 1),
             bbox_min_z: bbox(0, 2),

@@ -903,3 +903,32 @@ fn repair_runs_do_not_answer_from_the_cache() {
         "an unused cache folder is not even created"
     );
 }
+
+/// A tetrahedron 1e300 long: its area and volume overflow `f64` (1e600), so they are not defined:
+/// empty cells in the CSV and `null` in the JSON, as SPEC 9 says of undefined numbers, never
+/// `NaN` or `inf`. Its bounding box is finite and is written (in digits: cells never use an
+/// exponent).
+#[test]
+fn numbers_that_overflow_are_empty_cells() {
+    let huge =
+        "v 0 0 0\nv 1e300 0 0\nv 0 1e300 0\nv 0 0 1e300\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    let dir = tree(&[("huge.obj", huge)]);
+    let run = meshvet(
+        dir.path(),
+        &[
+            "scan", "huge.obj", "--csv", "r.csv", "--json", "r.jsonl", "-q",
+        ],
+    );
+    assert!(run.code <= 1, "{}", run.stderr);
+    let mut reader = csv::Reader::from_path(dir.path().join("r.csv")).unwrap();
+    let header = reader.headers().unwrap().clone();
+    let row = reader.records().next().unwrap().unwrap();
+    let cell = |name: &str| row[header.iter().position(|h| h == name).unwrap()].to_owned();
+    assert_eq!(
+        (cell("volume"), cell("area")),
+        (String::new(), String::new())
+    );
+    assert_eq!(cell("bbox_max_x").parse::<f64>(), Ok(1e300));
+    let json = std::fs::read_to_string(dir.path().join("r.jsonl")).unwrap();
+    assert!(!json.contains("NaN") && !json.contains("inf"), "{json}");
+}
