@@ -266,6 +266,19 @@ impl Config {
                 ));
             }
         }
+        if config
+            .intersections
+            .as_ref()
+            .is_some_and(|x| x.pair_budget == Some(0))
+        {
+            // The search spends its budget in batches, so a budget of 0 would never stop it.
+            return Err(error(
+                None,
+                "`[intersections] pair_budget` must be at least 1 (pairs looked at per face); to \
+                 skip the search, set `check = false`"
+                    .into(),
+            ));
+        }
         for name in config.rules.iter().flat_map(|rules| rules.keys()) {
             if Rule::from_name(name.get_ref()).is_none() {
                 let names = Rule::ALL.map(Rule::name);
@@ -483,6 +496,16 @@ mod tests {
             "{}",
             err.message
         );
+    }
+
+    /// A pair budget of 0 would stop nothing (the search spends it in batches): refused, saying
+    /// how to skip the search.
+    #[test]
+    fn a_pair_budget_of_zero_is_refused() {
+        let err = parse("[intersections]\npair_budget = 0\n").unwrap_err();
+        assert!(err.message.contains("at least 1"), "{}", err.message);
+        assert!(err.message.contains("check = false"), "{}", err.message);
+        assert!(parse("[intersections]\npair_budget = 1\n").is_ok());
     }
 
     /// Short forms, plurals and capitals are typos too: each gets the name meant.
