@@ -233,8 +233,13 @@ fn is_report(path: &Path) -> bool {
     let text = head.strip_prefix("\u{feff}".as_bytes()).unwrap_or(&head);
     let holds = |needle: &[u8]| text.windows(needle.len()).any(|w| w == needle);
     text.is_empty()
-        || text.starts_with(b"path,")
-        || text.starts_with(b"{\"path\":")
+        // The first columns every meshvet CSV and JSON Lines report has begun with (SPEC 9): a
+        // table another tool wrote with a `path` column is not replaced.
+        || text.starts_with(b"path,mesh,format,status,message,")
+        || (text.starts_with(b"{\"path\":")
+            && holds(b"\"mesh\":")
+            && holds(b"\"format\":")
+            && holds(b"\"status\":"))
         || (text.starts_with(b"<?xml") && holds(b"<testsuites name=\"meshvet\""))
         || (text.starts_with(b"<!DOCTYPE html>") && holds(b"<title>meshvet QA report"))
 }

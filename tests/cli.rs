@@ -454,8 +454,9 @@ fn a_report_never_replaces_a_scanned_file() {
 }
 
 /// Nor a file a model reads beside it (its material library, a texture) or the config in use:
-/// inside a scanned tree a report may replace only an earlier meshvet report or an empty file,
-/// and nowhere the config. Each refusal exits 2 before anything is written.
+/// inside a scanned tree a report may replace only an earlier meshvet report (not another tool's
+/// table that has a `path` column) or an empty file, and nowhere the config. Each refusal exits 2
+/// before anything is written.
 #[test]
 fn a_report_never_replaces_a_file_a_model_or_the_scan_reads() {
     let tree = Tree::new(&[
@@ -463,6 +464,8 @@ fn a_report_never_replaces_a_file_a_model_or_the_scan_reads() {
         ("m/a.mtl", "newmtl red\nKd 1 0 0\nmap_Kd red.png\n"),
         ("m/red.png", "not really a picture"),
         ("m/empty.csv", ""),
+        ("m/sizes.csv", "path,bytes\na.obj,120\n"),
+        ("m/sizes.jsonl", "{\"path\":\"a.obj\",\"bytes\":120}\n"),
         ("meshvet.toml", "[rules]\nhole = \"off\"\n"),
         ("other.toml", "[rules]\nhole = \"off\"\n"),
     ]);
@@ -472,6 +475,9 @@ fn a_report_never_replaces_a_file_a_model_or_the_scan_reads() {
         &["--json", "m/red.png"],
         &["--junit", "meshvet.toml"],
         &["--html", "other.toml", "--config", "other.toml"],
+        // Another tool's tables with a `path` column are no meshvet reports.
+        &["--csv", "m/sizes.csv"],
+        &["--json", "m/sizes.jsonl"],
     ] {
         let run = meshvet(tree.path(), &[&["scan", "m", "-q"], args].concat());
         assert_eq!(run.code, 2, "{args:?}: {}", run.stderr);
@@ -484,6 +490,7 @@ fn a_report_never_replaces_a_file_a_model_or_the_scan_reads() {
     assert!(read("m/a.mtl").starts_with("newmtl red"));
     assert_eq!(read("m/red.png"), "not really a picture");
     assert_eq!(read("meshvet.toml"), read("other.toml"));
+    assert_eq!(read("m/sizes.csv"), "path,bytes\na.obj,120\n");
 
     // Reports of an earlier run, and an empty file, may be replaced, as each kind of report.
     let reports = [
