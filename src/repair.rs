@@ -228,12 +228,28 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
         let (edges, vertices) = work.split_nonmanifold(options);
         done.push((Kind::SplitNonManifoldEdges, edges, None));
         done.push((Kind::SplitNonManifoldVertices, vertices, None));
+        // What is left: a fan too small to move a copy of its vertex clear of the vertex, its
+        // other copies and the fan's corners.
+        let why = if options.weld_tolerance > 0.0 {
+            "the copy would weld back; lower weld_tolerance"
+        } else {
+            "the copy would land on another vertex"
+        };
+        let n = work.edges_left;
+        if n > 0 {
+            not_repairable.push(format!(
+                "{n} non-manifold edge{} left as {}: a face on {} could not be cut loose, as a \
+                 copy of its vertices could not move clear of them ({why})",
+                plural(n),
+                if n == 1 { "it is" } else { "they are" },
+                if n == 1 { "it" } else { "each" }
+            ));
+        }
         let n = work.unsplittable.len();
         if n > 0 {
             not_repairable.push(format!(
-                "{n} non-manifold vert{} left as {}: a fan around {} is too small for a copy of \
-                 the vertex to move beyond the weld tolerance, so the copy would weld back (lower \
-                 weld_tolerance)",
+                "{n} non-manifold vert{} left as {}: a fan around {} is too small to move a \
+                 copy of the vertex clear of it ({why})",
                 if n == 1 { "ex" } else { "ices" },
                 if n == 1 { "it is" } else { "they are" },
                 if n == 1 { "it" } else { "each" }
@@ -363,6 +379,8 @@ struct Work<'a> {
     copies_of: FxHashMap<u32, Vec<[f64; 3]>>,
     /// Welded vertices with a fan that could not be given a copy far enough away to stay apart.
     unsplittable: FxHashSet<u32>,
+    /// Non-manifold edges left after splitting (a face on them could not be cut loose).
+    edges_left: usize,
 }
 
 impl<'a> Work<'a> {
@@ -404,6 +422,7 @@ impl<'a> Work<'a> {
             tolerance: options.weld_tolerance,
             copies_of: FxHashMap::default(),
             unsplittable: FxHashSet::default(),
+            edges_left: 0,
         }
     }
 
@@ -524,13 +543,15 @@ impl<'a> Work<'a> {
     /// traverse it in opposite directions (or its first two) and the others are cut loose; then every
     /// vertex whose faces form several fans gets a copy per extra fan. Repeats while cutting exposes
     /// more (at most a few rounds). Returns `(edges, vertices)` split: the mesh's non-manifold
-    /// edges, and its vertices that got at least one copy (each counted once, however many copies
-    /// it got and in however many rounds).
+    /// edges that are manifold now, and its vertices that got at least one copy (each counted once,
+    /// however many copies it got and in however many rounds). The non-manifold edges left (a face
+    /// that could not be cut loose, [`Work::detach_fan`]) are in `edges_left`.
     fn split_nonmanifold(&mut self, options: &Options) -> (usize, usize) {
         if self.manifold && self.table.is_some() {
             return (0, 0);
         }
         let mut edges = None;
+        let mut clean = false;
         let nudge = self.nudge_distance(options.weld_tolerance);
         let mut last = usize::MAX;
         for _round in 0..8 {
@@ -557,9 +578,15 @@ impl<'a> Work<'a> {
             }
             let split = self.split_fans(table, index, &opposite, nudge);
             if cut == 0 && split == 0 {
+                clean = true;
                 break;
             }
         }
+        self.edges_left = if clean {
+            0
+        } else {
+            self.current(false).0.nonmanifold_edges().len()
+        };
         let mut split: Vec<u32> = self.new_vertices.iter().map(|v| v.copy_of).collect();
         // By welded vertex: an STL facet's three corners at one point are one vertex of the mesh.
         for v in &mut split {
@@ -567,7 +594,10 @@ impl<'a> Work<'a> {
         }
         split.sort_unstable();
         split.dedup();
-        (edges.unwrap_or(0), split.len())
+        (
+            edges.unwrap_or(0).saturating_sub(self.edges_left),
+            split.len(),
+        )
     }
 
     /// Gives every face on a non-manifold edge, but the pair kept there, its own three vertices
@@ -720,10 +750,20 @@ impl<'a> Work<'a> {
                 p != q
             }
         };
+        // Apart from the vertex, its other copies and the fan's other corners (the copy read back
+        // welds onto the first of these within the tolerance, collapsing a face).
         let copies = self.copies_of.get(&v).map_or(&[][..], Vec::as_slice);
+        let ring = fan
+            .iter()
+            .flat_map(|&c| [CornerTable::n(c), CornerTable::p(c)])
+            .map(|k| self.points[table.v(k) as usize]);
+        let near: Vec<[f64; 3]> = std::iter::once(origin)
+            .chain(copies.iter().copied())
+            .chain(ring)
+            .collect();
         let found = (1..=4)
             .map(|k| place((f64::from(k) * base).min(0.5)))
-            .find(|p| apart(p, &origin) && copies.iter().all(|q| apart(p, q)));
+            .find(|p| near.iter().all(|q| apart(p, q)));
         let Some(position) = found else {
             self.unsplittable.insert(v);
             return false;

@@ -689,7 +689,12 @@ fn copies_of_one_vertex_towards_one_direction_stay_apart() {
 /// welded with tolerance 0.4: a copy moved a quarter of the way to its fan's centre (0.28) is
 /// within 0.4 of O and welds back onto it; moved half the way (0.56) it stays apart, and the copy
 /// has no non-manifold vertex. With sliver fans whose centres lie 0.05 from O, no copy within
-/// half the way is 0.4 from O: the vertex is left as it is, and the row says why.
+/// half the way is 0.4 from O: the vertex is left as it is, and the row says why. So too when
+/// the place half way, (0.6125, 0.0125, 0) for the fan O (0.45, 0, 0) (2, 0.05, 0), lies 0.16
+/// from the fan's own corner (0.45, 0, 0): the copy would weld onto that corner and collapse the
+/// face. Three faces on an edge 0.5 long: the face cut loose cannot take copies of the edge's
+/// vertices (its fans' centres lie 0.43 from them, half way is 0.22), so the edge is not counted
+/// as split, and the row says so.
 #[test]
 fn split_copies_move_beyond_the_weld_tolerance_or_are_reported() {
     let options = Options {
@@ -720,15 +725,48 @@ fn split_copies_move_beyond_the_weld_tolerance_or_are_reported() {
         ],
         vec![[0, 1, 2], [0, 3, 4]],
     );
+    let corner = Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+            [0.45, 0.0, 0.0],
+            [2.0, 0.05, 0.0],
+        ],
+        vec![[0, 1, 2], [0, 3, 4]],
+    );
+    let (p, a) = repaired_with(&corner, &options);
+    assert!(p.new_vertices.is_empty(), "{:?}", p.new_vertices);
+    assert_eq!((a.nonmanifold_vertices, a.degenerate_faces), (1, 0));
+
+    let fin = Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [0.5, 0.0, 0.0],
+            [0.25, 0.433, 0.0],
+            [0.25, -0.2165, 0.374989],
+            [0.25, -0.2165, -0.374989],
+        ],
+        vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+    );
+    let (p, a) = repaired_with(&fin, &options);
+    assert_eq!(count(&p, Kind::SplitNonManifoldEdges), 0);
+    assert_eq!(a.nonmanifold_edges, 1);
+    assert!(
+        p.not_repairable.iter().any(|n| n
+            .starts_with("1 non-manifold edge left as it is: a face on it could not be cut loose")),
+        "{:?}",
+        p.not_repairable
+    );
+
     let (p, a) = repaired_with(&slivers, &options);
     assert_eq!(count(&p, Kind::SplitNonManifoldVertices), 0);
     assert!(p.new_vertices.is_empty());
     assert_eq!(a.nonmanifold_vertices, 1);
     assert!(
         p.not_repairable.contains(
-            &"1 non-manifold vertex left as it is: a fan around it is too small for a copy of the \
-              vertex to move beyond the weld tolerance, so the copy would weld back (lower \
-              weld_tolerance)"
+            &"1 non-manifold vertex left as it is: a fan around it is too small to move a copy \
+              of the vertex clear of it (the copy would weld back; lower weld_tolerance)"
                 .to_owned()
         ),
         "{:?}",
