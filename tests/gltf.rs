@@ -252,6 +252,22 @@ fn meshes_sharing_a_name_get_their_index() {
         names,
         ["Part (#0)", "#2 (#1)", "#2 (#2)", "Part (#3)", "Lid"]
     );
+    // Names that the tags meet again, ten deep (`X`, `X`, `X (#1)`, `X (#1) (#1)`, ...): every
+    // round of tags ends with all names distinct.
+    let mut chain = vec![named("X")];
+    let mut name = "X".to_owned();
+    for _ in 0..10 {
+        chain.push(named(&name));
+        name += " (#1)";
+    }
+    let read = read_ok(
+        "chain.gltf",
+        triangle_with(&format!("[{}]", chain.join(",")), &[]),
+    );
+    let mut names: Vec<&str> = read.iter().map(|m| m.name.as_deref().unwrap()).collect();
+    names.sort_unstable();
+    names.dedup();
+    assert_eq!(names.len(), 11, "{names:?}");
 }
 
 #[test]

@@ -242,9 +242,11 @@ pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, 
 /// Gives the meshes of one file distinct names: each mesh whose name another shares gets
 /// ` (TAG)` appended, `tag(i)` being unique per mesh (glTF: `#index`; 3MF: `#id`). Report rows
 /// are matched by path and mesh (a baseline, the page's links), so no two may share both. Repeated
-/// while names still meet (a mesh may be named `Part (#1)` already), a few rounds at most.
+/// while names still meet (a mesh may be named `Part (#1)` already): two names tagged in one round
+/// end in different tags, so each round after the first tags a name that was never tagged, and
+/// the rounds end.
 pub(crate) fn distinct_names(meshes: &mut [Mesh], tag: impl Fn(usize) -> String) {
-    for _ in 0..8 {
+    for _ in 0..=meshes.len() {
         let mut uses: std::collections::HashMap<String, usize> = Default::default();
         for mesh in meshes.iter() {
             *uses
