@@ -193,7 +193,9 @@ impl Settings {
                 && r.drop_degenerate_faces
                 && on(Rule::InvalidVertex),
             drop_degenerate_faces: r.drop_degenerate_faces && on(Rule::DegenerateFace),
-            drop_duplicate_faces: r.drop_duplicate_faces && on(Rule::DuplicateFace),
+            // A duplicate face makes its edges non-manifold: dropping it is that edge's repair too.
+            drop_duplicate_faces: r.drop_duplicate_faces
+                && (on(Rule::DuplicateFace) || on(Rule::NonManifoldEdge)),
             split_nonmanifold: r.split_nonmanifold
                 && (on(Rule::NonManifoldEdge) || on(Rule::NonManifoldVertex)),
             orient_faces: r.orient_faces && on(Rule::InconsistentWinding),
@@ -249,12 +251,13 @@ impl Config {
                 .message()
                 .trim_end()
                 .replace("unknown field", "unknown key");
+            let explained = match e.span().and_then(|s| key_at(text, s.start)) {
+                Some(key) => explain_value(&message, &key),
+                None => message.clone(),
+            };
             let message = match suggest_for_unknown_field(&message) {
-                Some(known) => format!("{message}; did you mean `{known}`?"),
-                None => match e.span().and_then(|s| key_at(text, s.start)) {
-                    Some(key) => explain_value(&message, &key),
-                    None => message,
-                },
+                Some(known) => format!("{explained}; did you mean `{known}`?"),
+                None => explained,
             };
             error(e.span(), message)
         })?;
@@ -496,6 +499,34 @@ mod tests {
             "{}",
             err.message
         );
+        // The key is named with its table, suggestion or not.
+        let err = parse("[repair]\nfill = true\n").unwrap_err();
+        assert!(
+            err.message
+                .starts_with("`[repair] fill`: unknown key `fill`")
+                && err.message.ends_with("did you mean `fill_holes`?"),
+            "{}",
+            err.message
+        );
+    }
+
+    /// A repair runs while a rule it answers is on: filling holes only while `hole` is; dropping
+    /// duplicate faces while `duplicate-face` or `non-manifold-edge` is (a duplicate makes its
+    /// edges non-manifold, and dropping it is their repair: splitting them instead cut one copy
+    /// loose and left a hole).
+    #[test]
+    fn repairs_follow_the_rules_they_answer() {
+        let with = |text: &str| {
+            Settings::default()
+                .merge(&parse(text).unwrap())
+                .repair_options()
+        };
+        assert!(with("").fill_holes && with("").drop_duplicate_faces);
+        assert!(!with("[rules]\nhole = \"off\"\n").fill_holes);
+        assert!(with("[rules]\nduplicate-face = \"off\"\n").drop_duplicate_faces);
+        let both = with("[rules]\nduplicate-face = \"off\"\nnon-manifold-edge = \"off\"\n");
+        assert!(!both.drop_duplicate_faces);
+        assert!(both.split_nonmanifold, "non-manifold-vertex is still on");
     }
 
     /// A pair budget of 0 would stop nothing (the search spends it in batches): refused, saying
