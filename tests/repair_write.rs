@@ -2167,3 +2167,49 @@ fn ply_index_lists_are_widened_when_the_repair_numbers_past_them() {
         );
     }
 }
+
+/// One texture reached from two libraries of one source folder that land in different folders of
+/// the copy: `mtllib sub/l1.mtl ../models/sub/l2.mtl` keeps `sub/l1.mtl` in place and brings the
+/// second (named through `../`) beside the copy as `l2.mtl`. Both name `wood.png` beside
+/// themselves, so the copy needs it twice: `sub/wood.png` for `l1.mtl` and `wood.png` for
+/// `l2.mtl` (it was written once, and `l2.mtl` named a file that was not there).
+#[test]
+fn a_texture_two_libraries_name_is_beside_each_in_the_copy() {
+    let (_dir, src, out) = dirs();
+    std::fs::create_dir_all(src.join("models/sub")).unwrap();
+    for (lib, material) in [("l1", "m"), ("l2", "n")] {
+        std::fs::write(
+            src.join(format!("models/sub/{lib}.mtl")),
+            format!("newmtl {material}\nmap_Kd wood.png\n"),
+        )
+        .unwrap();
+    }
+    std::fs::write(src.join("models/sub/wood.png"), "wood").unwrap();
+    let obj =
+        "mtllib sub/l1.mtl ../models/sub/l2.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n";
+    let source = src.join("models/a.obj");
+    std::fs::write(&source, obj).unwrap();
+    let c = cx(&src);
+    let meshes = read(&source, Format::Obj, &c).unwrap();
+    let copy = out.join("models/a.obj");
+    write_repaired(
+        &source,
+        Format::Obj,
+        &[Some(identity(&meshes[0]))],
+        &copy,
+        &c,
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&copy).unwrap();
+    assert_eq!(lines_with(&text, "mtllib"), ["mtllib sub/l1.mtl l2.mtl"]);
+    let models = out.join("models");
+    for (library, texture) in [("sub/l1.mtl", "sub/wood.png"), ("l2.mtl", "wood.png")] {
+        let mtl = std::fs::read_to_string(models.join(library)).unwrap();
+        assert!(mtl.ends_with("map_Kd wood.png\n"), "{library}: {mtl}");
+        assert_eq!(
+            std::fs::read_to_string(models.join(texture)).unwrap(),
+            "wood",
+            "{texture}"
+        );
+    }
+}

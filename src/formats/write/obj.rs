@@ -265,9 +265,10 @@ struct Copier<'a> {
     claims: &'a Claims,
     /// Places written already (two files of the same bytes share a place).
     placed: HashSet<PathBuf>,
-    /// Names looked up already, per folder they are named from: their new names (`None`: not
-    /// copied, the name stays).
-    named: FxHashMap<(PathBuf, String), Option<String>>,
+    /// Names looked up already, per folder they are named from in the source and the folder of
+    /// the library naming them in the copy (a texture two libraries name from one source folder
+    /// needs a place relative to each): their new names (`None`: not copied, the name stays).
+    named: FxHashMap<(PathBuf, PathBuf, String), Option<String>>,
     sides: Sides,
 }
 
@@ -411,7 +412,7 @@ fn copy_materials(
 /// Copies the library the copy's `mtllib` names `name` (and its textures); its name in the copy,
 /// `None` when not copied.
 fn library_copy(copier: &mut Copier<'_>, name: &str) -> Result<Option<String>, WriteError> {
-    let key = (PathBuf::new(), name.to_owned());
+    let key = (PathBuf::new(), PathBuf::new(), name.to_owned());
     if let Some(done) = copier.named.get(&key) {
         return Ok(done.clone());
     }
@@ -481,7 +482,7 @@ fn texture_copy(
     base: &Path,
     moved: bool,
 ) -> Result<Option<String>, WriteError> {
-    let key = (from.to_path_buf(), name.to_owned());
+    let key = (from.to_path_buf(), base.to_path_buf(), name.to_owned());
     if let Some(done) = copier.named.get(&key) {
         return Ok(done.clone());
     }
