@@ -664,6 +664,10 @@ impl<'a> Work<'a> {
         let nc = table.corner_count();
         let mut visited = vec![false; nc];
         let mut fans_at = vec![0u32; table.vertex_count()];
+        // The corners of each vertex's first fan (the one that keeps the vertex), by range.
+        let mut firsts: Vec<u32> = Vec::new();
+        let mut first_of = vec![(0u32, 0u32); table.vertex_count()];
+        let mut swapped = vec![false; table.vertex_count()];
         let mut split = 0;
         let mut fan = Vec::new();
         for start in 0..nc as u32 {
@@ -695,9 +699,24 @@ impl<'a> Work<'a> {
                 }
                 // After a closed fan the other way stops at once: its first step is visited.
             }
-            fans_at[v as usize] += 1;
-            if fans_at[v as usize] > 1 && self.detach_fan(table, index, &fan, nudge) {
+            let vi = v as usize;
+            fans_at[vi] += 1;
+            if fans_at[vi] == 1 {
+                first_of[vi] = (firsts.len() as u32, (firsts.len() + fan.len()) as u32);
+                firsts.extend_from_slice(&fan);
+            } else if self.detach_fan(table, index, &fan, nudge) {
                 split += 1;
+            } else if !swapped[vi] {
+                // A fan too small to move a copy clear of the vertex keeps the vertex instead,
+                // and the first fan (often the larger) takes the copy: the result does not hang
+                // on which fan comes first in the file.
+                swapped[vi] = true;
+                let (from, to) = first_of[vi];
+                let first = firsts[from as usize..to as usize].to_vec();
+                if self.detach_fan(table, index, &first, nudge) {
+                    self.unsplittable.remove(&v);
+                    split += 1;
+                }
             }
         }
         split

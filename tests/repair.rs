@@ -689,10 +689,11 @@ fn copies_of_one_vertex_towards_one_direction_stay_apart() {
 /// welded with tolerance 0.4: a copy moved a quarter of the way to its fan's centre (0.28) is
 /// within 0.4 of O and welds back onto it; moved half the way (0.56) it stays apart, and the copy
 /// has no non-manifold vertex. With sliver fans whose centres lie 0.05 from O, no copy within
-/// half the way is 0.4 from O: the vertex is left as it is, and the row says why. So too when
-/// the place half way, (0.6125, 0.0125, 0) for the fan O (0.45, 0, 0) (2, 0.05, 0), lies 0.16
-/// from the fan's own corner (0.45, 0, 0): the copy would weld onto that corner and collapse the
-/// face. Three faces on an edge 0.5 long: the face cut loose cannot take copies of the edge's
+/// half the way is 0.4 from O: the vertex is left as it is, and the row says why. The place half
+/// way, (0.6125, 0.0125, 0) for the fan O (0.45, 0, 0) (2, 0.05, 0), lies 0.16 from the fan's own
+/// corner (0.45, 0, 0): a copy there would weld onto that corner and collapse the face, so that
+/// fan keeps O and the other, O (0, 1, 0) (-1, 1, 0), takes the copy, half way to its centre at
+/// (-0.25, 0.5, 0) (0.56 from O and from (0, 1, 0)). Three faces on an edge 0.5 long: the face cut loose cannot take copies of the edge's
 /// vertices (its fans' centres lie 0.43 from them, half way is 0.22), so the edge is not counted
 /// as split, and the row says so.
 #[test]
@@ -736,8 +737,9 @@ fn split_copies_move_beyond_the_weld_tolerance_or_are_reported() {
         vec![[0, 1, 2], [0, 3, 4]],
     );
     let (p, a) = repaired_with(&corner, &options);
-    assert!(p.new_vertices.is_empty(), "{:?}", p.new_vertices);
-    assert_eq!((a.nonmanifold_vertices, a.degenerate_faces), (1, 0));
+    assert_eq!(p.new_vertices.len(), 1, "{:?}", p.new_vertices);
+    assert_eq!(p.new_vertices[0].position, [-0.25, 0.5, 0.0]);
+    assert_eq!((a.nonmanifold_vertices, a.degenerate_faces), (0, 0));
 
     let fin = Mesh::new(
         vec![
@@ -772,4 +774,29 @@ fn split_copies_move_beyond_the_weld_tolerance_or_are_reported() {
         "{:?}",
         p.not_repairable
     );
+}
+
+/// A triangle and a sliver on one vertex O, welded with tolerance 0.4: the sliver's fan centre
+/// lies 0.05 from O, too near for a copy of O to move clear of it, while the triangle's lies 1.118
+/// away (half way is 0.56 from O and from its corners). Whichever fan comes first in the file,
+/// the triangle takes the copy and the sliver keeps O: split, no non-manifold vertex left.
+#[test]
+fn the_split_does_not_hang_on_which_fan_comes_first() {
+    let options = Options {
+        weld_tolerance: 0.4,
+        ..Options::default()
+    };
+    let positions = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.1, -1.0],
+    ];
+    for faces in [vec![[0, 1, 2], [0, 3, 4]], vec![[0, 3, 4], [0, 1, 2]]] {
+        let mesh = Mesh::new(positions.clone(), faces.clone());
+        let (p, a) = repaired_with(&mesh, &options);
+        assert_eq!(p.summary(), "split-non-manifold-vertices:1", "{faces:?}");
+        assert_eq!(a.nonmanifold_vertices, 0, "{faces:?}");
+    }
 }
