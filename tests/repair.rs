@@ -162,15 +162,7 @@ fn cubes_sharing_an_edge_are_split_into_two_shells() {
 /// reported.
 #[test]
 fn bowtie_vertex_is_split_and_lone_triangles_stay_open() {
-    let positions = vec![
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [-1.0, -1.0, 0.0],
-    ];
-    let mesh = Mesh::new(positions, vec![[0, 1, 2], [0, 3, 4]]);
-    let (p, _, a) = repaired(&mesh);
+    let (p, _, a) = repaired(&shapes::bowtie());
     assert_eq!(p.summary(), "split-non-manifold-vertices:1");
     assert_eq!(a.nonmanifold_vertices, 0);
     assert_eq!(a.components.len(), 2);
@@ -702,16 +694,7 @@ fn split_copies_move_beyond_the_weld_tolerance_or_are_reported() {
         weld_tolerance: 0.4,
         ..Options::default()
     };
-    let bowtie = Mesh::new(
-        vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 0.0, 0.0],
-            [-1.0, -1.0, 0.0],
-        ],
-        vec![[0, 1, 2], [0, 3, 4]],
-    );
+    let bowtie = shapes::bowtie();
     let (p, a) = repaired_with(&bowtie, &options);
     assert_eq!(p.summary(), "split-non-manifold-vertices:1");
     assert_eq!((a.nonmanifold_vertices, a.components.len()), (0, 2));

@@ -540,16 +540,7 @@ fn klein_bottle_is_a_closed_non_orientable_shell() {
 /// not linked by an edge: 1 non-manifold vertex. 6 border edges, b = 2, genus 0 + 0 = 0.
 #[test]
 fn bowtie_has_one_nonmanifold_vertex() {
-    let mesh = Mesh::new(
-        vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [-1.0, 0.0, 0.0],
-            [-1.0, -1.0, 0.0],
-        ],
-        vec![[0, 1, 2], [0, 3, 4]],
-    );
+    let mesh = shapes::bowtie();
     let a = run(&mesh);
     assert_eq!(
         counts(&a),

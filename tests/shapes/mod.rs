@@ -46,6 +46,21 @@ impl XorShift {
     }
 }
 
+/// A bowtie: the triangles `(0,0,0) (1,0,0) (1,1,0)` and `(0,0,0) (-1,0,0) (-1,-1,0)`, touching
+/// only at vertex 0 (one non-manifold vertex; fan centres `(1, 0.5, 0)` and `(-1, -0.5, 0)`).
+pub fn bowtie() -> Mesh {
+    Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [-1.0, -1.0, 0.0],
+        ],
+        vec![[0, 1, 2], [0, 3, 4]],
+    )
+}
+
 /// The unit corner tetrahedron `(0,0,0) (1,0,0) (0,1,0) (0,0,1)`, outward.
 ///
 /// V 4, E 6, F 4, chi 2, genus 0; volume 1/6 (base 1/2 x height 1 / 3); area 3 x 1/2 + sqrt(3)/2.
