@@ -725,10 +725,11 @@ impl<'a> Work<'a> {
     /// Gives the corners of one fan a new welded vertex, a hair inside the fan: one new vertex per
     /// distinct input vertex among them (each keeps its own attributes). The copy moves `nudge`
     /// towards the fan's centre (at most a quarter of the way); where that leaves it within the
-    /// weld tolerance of its vertex or of another copy of it (a fan smaller than the tolerance,
-    /// two fans in one direction), it moves twice, three, four times as far, at most half the
-    /// way. Returns `false`, changing nothing, when no such place is apart from them: a copy there
-    /// would weld back when the copy is read (the vertex is then listed in `unsplittable`).
+    /// weld tolerance of its vertex, of another copy of it or of a corner of the fan (a fan smaller
+    /// than the tolerance, two fans in one direction), it moves twice, three, four times as far,
+    /// at most half the way. Returns `false`, changing nothing, when no such place is apart from
+    /// them: a copy there would weld onto one of them when the copy is read (the vertex is then
+    /// listed in `unsplittable`).
     fn detach_fan(&mut self, table: &CornerTable, index: &[u32], fan: &[u32], nudge: f64) -> bool {
         let v = table.v(fan[0]);
         let origin = self.points[v as usize];
