@@ -1009,6 +1009,30 @@ impl<'a> Work<'a> {
                 faces.insert(sorted(table.triangles()[t]), ());
             }
         }
+        // The border edge after `c`'s, from its end `w`: found by turning around `w` from `c`'s face
+        // across the faces' other edges at `w`, so that at a vertex two holes share (a pinch) the
+        // loop stays in its own fan; by `starting` past a non-manifold edge. `None` when the edge
+        // found does not start at `w` (a winding the orientation left inconsistent).
+        let next_border = |c: u32| -> Option<u32> {
+            let w = table.v(CornerTable::p(c));
+            // The corner whose opposite edge is the face's other edge at `w`.
+            let mut j = CornerTable::n(c);
+            for _ in 0..table.corner_count() {
+                let o = table.o(j);
+                if o == j {
+                    return (table.v(CornerTable::n(j)) == w).then_some(j);
+                }
+                if o == NON_MANIFOLD {
+                    return starting.get(&w).copied();
+                }
+                j = if table.v(CornerTable::n(o)) == w {
+                    CornerTable::p(o)
+                } else {
+                    CornerTable::n(o)
+                };
+            }
+            None
+        };
         let mut traced = vec![false; table.corner_count()];
         let mut new_triangles = Vec::new();
         let mut filled: Vec<Filled> = Vec::new();
@@ -1021,9 +1045,9 @@ impl<'a> Work<'a> {
             let closed = loop {
                 traced[c as usize] = true;
                 loop_corners.push(c);
-                match starting.get(&table.v(CornerTable::p(c))) {
-                    Some(&next) if next == first => break true,
-                    Some(&next)
+                match next_border(c) {
+                    Some(next) if next == first => break true,
+                    Some(next)
                         if !traced[next as usize] && loop_corners.len() <= table.corner_count() =>
                     {
                         c = next

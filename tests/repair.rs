@@ -783,3 +783,38 @@ fn the_split_does_not_hang_on_which_fan_comes_first() {
         assert_eq!(a.nonmanifold_vertices, 0, "{faces:?}");
     }
 }
+
+/// Holes are traced within their fans at a vertex they share: the bowtie left unsplit
+/// (`split_nonmanifold` off) has two border loops of three edges through its pinch vertex, as the
+/// analysis counts them (`holes` 2), and each fill would repeat its triangle: "2 holes left open".
+/// Two open boxes touching at a corner of their rims, (1, 1, 1): each rim, a 4-edge loop through
+/// the pinch, is filled (2 faces each); the pinch stays.
+#[test]
+fn holes_are_traced_within_their_fans_at_a_pinch() {
+    let options = Options {
+        split_nonmanifold: false,
+        ..Options::default()
+    };
+    let bowtie = shapes::bowtie();
+    assert_eq!(analyse(&bowtie, &Default::default()).holes(), 2);
+    let p = plan(&bowtie, &options);
+    assert_eq!(
+        p.not_repairable,
+        ["2 holes left open: filling would overlap existing edges"]
+    );
+
+    let open = |lo: f64, keep: fn(&[u32; 3]) -> bool| {
+        let mut box_ = shapes::cuboid([lo; 3], [lo + 1.0; 3]);
+        box_.triangles.retain(keep);
+        box_
+    };
+    // Vertices 4-7 are the top (z = hi), 0-3 the bottom.
+    let no_top = open(0.0, |t| !t.iter().all(|&v| v >= 4));
+    let no_bottom = open(1.0, |t| !t.iter().all(|&v| v < 4));
+    let boxes = shapes::merge(&[no_top, no_bottom]);
+    let p = plan(&boxes, &options);
+    assert_eq!(p.summary(), "fill-holes:2(4 faces)");
+    assert!(p.not_repairable.is_empty(), "{:?}", p.not_repairable);
+    let a = analyse(&p.apply(&boxes), &Default::default());
+    assert_eq!((a.holes(), a.nonmanifold_vertices), (0, 1));
+}
