@@ -270,21 +270,31 @@ pub fn cannot_write(target: &Target, e: &io::Error) -> String {
 
 /// `line` as the terminal shows it: control characters (a file or mesh name may hold an escape
 /// sequence that recolours or rewrites the terminal, or a line feed that splits one finding's
-/// line in two for a hook reading them) written as `\x1b`-style escapes. The CSV, JSON and JUnit
+/// line in two for a hook reading them) written as `\x1b`-style escapes, and the directional
+/// formatting characters ([`is_bidi`]) as `\u{202e}`-style ones. The CSV, JSON and JUnit
 /// reports keep names as they are (each in its own quoting).
 pub fn printable(line: &str) -> std::borrow::Cow<'_, str> {
-    if !line.chars().any(char::is_control) {
+    if !line.chars().any(|c| c.is_control() || is_bidi(c)) {
         return line.into();
     }
     let mut out = String::with_capacity(line.len() + 8);
     for c in line.chars() {
         if c.is_control() {
             out.push_str(&format!("\\x{:02x}", u32::from(c)));
+        } else if is_bidi(c) {
+            out.push_str(&format!("\\u{{{:04x}}}", u32::from(c)));
         } else {
             out.push(c);
         }
     }
     out.into()
+}
+
+/// Unicode's directional formatting characters (marks, embeddings, overrides, isolates): in a
+/// name they reorder what the terminal shows after them (`part\u{202e}lts.exe` shows as
+/// `partexe.stl`), so they are written as `\u{202e}`-style escapes too.
+fn is_bidi(c: char) -> bool {
+    matches!(c, '\u{061c}' | '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
 }
 
 /// The `--format lines` lines of one mesh with their severity (for sorting, errors first):

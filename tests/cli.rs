@@ -545,14 +545,16 @@ fn reports_are_put_in_place_together_or_not_at_all() {
     assert_eq!(left.len(), 3, "no temporary file left: {left:?}");
 }
 
-/// A file name holding an escape sequence or a line feed reaches the terminal escaped: no raw
-/// control character recolours it, and each finding stays one line for a hook to read.
+/// A file name holding an escape sequence, a line feed or a right-to-left override reaches the
+/// terminal escaped: no raw control character recolours it, no override reverses the rest of the
+/// line, and each finding stays one line for a hook to read.
 #[cfg(unix)]
 #[test]
 fn control_characters_in_names_are_escaped_on_the_terminal() {
     let tree = Tree::new(&[
         ("m/red\u{1b}[31m.obj", INSIDE_OUT),
         ("m/two\nlines.obj", INSIDE_OUT),
+        ("m/evil\u{202e}jbo.obj", INSIDE_OUT),
     ]);
     for format in [&[][..], &["--format", "lines"]] {
         let run = meshvet(tree.path(), &[&["scan", "m"], format].concat());
@@ -565,6 +567,13 @@ fn control_characters_in_names_are_escaped_on_the_terminal() {
         );
         assert!(
             run.stdout.contains("two\\x0alines.obj: error"),
+            "{:?}",
+            run.stdout
+        );
+        // A right-to-left override would show the rest of the line reversed.
+        assert!(!run.stdout.contains('\u{202e}'), "{:?}", run.stdout);
+        assert!(
+            run.stdout.contains("evil\\u{202e}jbo.obj: error"),
             "{:?}",
             run.stdout
         );
