@@ -1918,19 +1918,7 @@ fn suite() -> Vec<(&'static str, Mesh)> {
         ("tube", shapes::tube(5, 2)),
         ("moebius", shapes::moebius(5)),
         ("klein", shapes::klein(6, 4)),
-        (
-            "bowtie",
-            Mesh::new(
-                vec![
-                    [0.0, 0.0, 0.0],
-                    [1.0, 0.0, 0.0],
-                    [1.0, 1.0, 0.0],
-                    [-1.0, 0.0, 0.0],
-                    [-1.0, -1.0, 0.0],
-                ],
-                vec![[0, 1, 2], [0, 3, 4]],
-            ),
-        ),
+        ("bowtie", shapes::bowtie()),
         ("tetrahedra on a vertex", merge(&[tetrahedron(), mirror])),
         (
             "three triangles on an edge",
