@@ -624,7 +624,7 @@ impl<'a> Work<'a> {
         for &t in &faces {
             for c in 3 * t..3 * t + 3 {
                 let v = table.v(c) as usize;
-                if left[v] > 1 && self.detach_fan(table, index, &[c], nudge) {
+                if left[v] > 1 && self.detach_fan(table, index, &[c], nudge, &[]) {
                     left[v] -= 1;
                 }
             }
@@ -664,8 +664,10 @@ impl<'a> Work<'a> {
         let nc = table.corner_count();
         let mut visited = vec![false; nc];
         let mut fans_at = vec![0u32; table.vertex_count()];
-        // The corners of each vertex's first fan (the one that keeps the vertex), by range.
+        // The corners of every fan, by range: each vertex's first (the one that keeps the vertex)
+        // and the later ones, given copies once every fan is known.
         let mut firsts: Vec<u32> = Vec::new();
+        let mut later: Vec<(u32, u32, u32)> = Vec::new();
         let mut first_of = vec![(0u32, 0u32); table.vertex_count()];
         let mut swapped = vec![false; table.vertex_count()];
         let mut split = 0;
@@ -701,10 +703,36 @@ impl<'a> Work<'a> {
             }
             let vi = v as usize;
             fans_at[vi] += 1;
+            let (from, to) = (firsts.len() as u32, (firsts.len() + fan.len()) as u32);
+            firsts.extend_from_slice(&fan);
             if fans_at[vi] == 1 {
-                first_of[vi] = (firsts.len() as u32, (firsts.len() + fan.len()) as u32);
-                firsts.extend_from_slice(&fan);
-            } else if self.detach_fan(table, index, &fan, nudge) {
+                first_of[vi] = (from, to);
+            } else {
+                later.push((v, from, to));
+            }
+        }
+        if later.is_empty() {
+            return 0;
+        }
+        // Where the corners of every fan of each vertex to split lie: a copy must stay clear of
+        // them all, or the copy read back welds onto one (the fan that keeps the vertex is often
+        // small, its corners near the vertex).
+        let mut around: FxHashMap<u32, Vec<[f64; 3]>> = FxHashMap::default();
+        for &(v, ..) in &later {
+            around.entry(v).or_default();
+        }
+        for c in 0..nc as u32 {
+            if let Some(ring) = around.get_mut(&table.v(c)) {
+                for k in [CornerTable::n(c), CornerTable::p(c)] {
+                    ring.push(self.points[table.v(k) as usize]);
+                }
+            }
+        }
+        for &(v, from, to) in &later {
+            let vi = v as usize;
+            let fan = firsts[from as usize..to as usize].to_vec();
+            let ring = &around[&v];
+            if self.detach_fan(table, index, &fan, nudge, ring) {
                 split += 1;
             } else if !swapped[vi] {
                 // A fan too small to move a copy clear of the vertex keeps the vertex instead,
@@ -713,7 +741,7 @@ impl<'a> Work<'a> {
                 swapped[vi] = true;
                 let (from, to) = first_of[vi];
                 let first = firsts[from as usize..to as usize].to_vec();
-                if self.detach_fan(table, index, &first, nudge) {
+                if self.detach_fan(table, index, &first, nudge, ring) {
                     self.unsplittable.remove(&v);
                     split += 1;
                 }
@@ -725,12 +753,20 @@ impl<'a> Work<'a> {
     /// Gives the corners of one fan a new welded vertex, a hair inside the fan: one new vertex per
     /// distinct input vertex among them (each keeps its own attributes). The copy moves `nudge`
     /// towards the fan's centre (at most a quarter of the way); where that leaves it within the
-    /// weld tolerance of its vertex, of another copy of it or of a corner of the fan (a fan smaller
-    /// than the tolerance, two fans in one direction), it moves twice, three, four times as far,
+    /// weld tolerance of its vertex, of another copy of it, of a corner of the fan or of `around`
+    /// (the corners of the vertex's other fans; a fan smaller than the tolerance, two fans in one
+    /// direction), it moves twice, three, four times as far,
     /// at most half the way. Returns `false`, changing nothing, when no such place is apart from
     /// them: a copy there would weld onto one of them when the copy is read (the vertex is then
     /// listed in `unsplittable`).
-    fn detach_fan(&mut self, table: &CornerTable, index: &[u32], fan: &[u32], nudge: f64) -> bool {
+    fn detach_fan(
+        &mut self,
+        table: &CornerTable,
+        index: &[u32],
+        fan: &[u32],
+        nudge: f64,
+        around: &[[f64; 3]],
+    ) -> bool {
         let v = table.v(fan[0]);
         let origin = self.points[v as usize];
         let mut centre = [0.0; 3];
@@ -780,6 +816,7 @@ impl<'a> Work<'a> {
         let near: Vec<[f64; 3]> = std::iter::once(origin)
             .chain(copies.iter().copied())
             .chain(ring)
+            .chain(around.iter().copied())
             .collect();
         let found = (1..=4)
             .map(|k| place((f64::from(k) * base).min(0.5)))
@@ -1040,15 +1077,15 @@ impl<'a> Work<'a> {
             if traced[first as usize] {
                 continue;
             }
-            let mut loop_corners = Vec::new();
+            let mut traced_loop = Vec::new();
             let mut c = first;
             let closed = loop {
                 traced[c as usize] = true;
-                loop_corners.push(c);
+                traced_loop.push(c);
                 match next_border(c) {
                     Some(next) if next == first => break true,
                     Some(next)
-                        if !traced[next as usize] && loop_corners.len() <= table.corner_count() =>
+                        if !traced[next as usize] && traced_loop.len() <= table.corner_count() =>
                     {
                         c = next
                     }
@@ -1059,79 +1096,82 @@ impl<'a> Work<'a> {
                 fill.blocked += 1;
                 continue;
             }
-            if loop_corners.len() > max_edges {
-                fill.too_large += 1;
-                continue;
-            }
-            // The fill runs the loop backwards; its corner at each loop vertex carries the attributes
-            // of the bordering face's corner there (n(c) sits at the start of c's border edge).
-            let ring: Vec<u32> = loop_corners
-                .iter()
-                .rev()
-                .map(|&c| table.v(CornerTable::n(c)))
-                .collect();
-            let at: FxHashMap<u32, Corner> = loop_corners
-                .iter()
-                .map(|&c| {
-                    let k = CornerTable::n(c);
-                    let t = &self.triangles[index[CornerTable::t(k) as usize] as usize];
-                    (table.v(k), t.corners[(k % 3) as usize])
-                })
-                .collect();
-            let mut tris = Vec::new();
-            // A loop that does not cross itself in its plane is split by ear clipping that finds a
-            // proper ear at every step (or by a fan when it is convex): the fill cannot overlap
-            // itself. A loop that crosses or folds onto itself there, one where ear clipping
-            // finds no ear (`triangulate` then falls back to a fan), and a concave one too long
-            // to ear-clip (fanned unchecked) could: left open.
-            if !simple_in_plane(&ring, &self.points)
-                || matches!(
-                    triangulate(&ring, &self.points, &mut tris),
-                    Split::Fallback | Split::Large
-                )
-            {
-                fill.no_triangulation += 1;
-                continue;
-            }
-            // A diagonal that is already an edge, or a face that is already there, would make the
-            // surface non-manifold: such a hole is left open.
-            let overlaps = tris.iter().any(|t| {
-                faces.contains_key(&sorted(*t))
-                    || (0..3).any(|k| {
-                        let (a, b) = (t[k], t[(k + 1) % 3]);
-                        let diagonal = !ring_neighbours(&ring, a, b);
-                        diagonal && edges.contains_key(&(a.min(b), a.max(b)))
-                    })
-            });
-            if overlaps || tris.len() + 2 != ring.len() || ring.len() < 3 {
-                fill.blocked += 1;
-                continue;
-            }
-            for t in &tris {
-                for k in 0..3 {
-                    let (a, b) = (t[k], t[(k + 1) % 3]);
-                    edges.insert((a.min(b), a.max(b)), ());
+            // A loop through a pinch twice (two holes meeting corner to corner) is two holes.
+            for loop_corners in simple_loops(table, traced_loop) {
+                if loop_corners.len() > max_edges {
+                    fill.too_large += 1;
+                    continue;
                 }
-            }
-            let near = index[CornerTable::t(first) as usize];
-            let near = self.triangles[near as usize]
-                .source
-                .unwrap_or(self.triangles[near as usize].near);
-            filled.push(Filled {
-                border: loop_corners.clone(),
-                triangles: new_triangles.len()..new_triangles.len() + tris.len(),
-                plane: plane_of(&ring, &self.points),
-            });
-            for t in tris {
-                new_triangles.push(Triangle {
-                    corners: t.map(|v| at[&v]),
-                    source: None,
-                    near,
-                    flipped: false,
+                // The fill runs the loop backwards; its corner at each loop vertex carries the attributes
+                // of the bordering face's corner there (n(c) sits at the start of c's border edge).
+                let ring: Vec<u32> = loop_corners
+                    .iter()
+                    .rev()
+                    .map(|&c| table.v(CornerTable::n(c)))
+                    .collect();
+                let at: FxHashMap<u32, Corner> = loop_corners
+                    .iter()
+                    .map(|&c| {
+                        let k = CornerTable::n(c);
+                        let t = &self.triangles[index[CornerTable::t(k) as usize] as usize];
+                        (table.v(k), t.corners[(k % 3) as usize])
+                    })
+                    .collect();
+                let mut tris = Vec::new();
+                // A loop that does not cross itself in its plane is split by ear clipping that finds a
+                // proper ear at every step (or by a fan when it is convex): the fill cannot overlap
+                // itself. A loop that crosses or folds onto itself there, one where ear clipping
+                // finds no ear (`triangulate` then falls back to a fan), and a concave one too long
+                // to ear-clip (fanned unchecked) could: left open.
+                if !simple_in_plane(&ring, &self.points)
+                    || matches!(
+                        triangulate(&ring, &self.points, &mut tris),
+                        Split::Fallback | Split::Large
+                    )
+                {
+                    fill.no_triangulation += 1;
+                    continue;
+                }
+                // A diagonal that is already an edge, or a face that is already there, would make the
+                // surface non-manifold: such a hole is left open.
+                let overlaps = tris.iter().any(|t| {
+                    faces.contains_key(&sorted(*t))
+                        || (0..3).any(|k| {
+                            let (a, b) = (t[k], t[(k + 1) % 3]);
+                            let diagonal = !ring_neighbours(&ring, a, b);
+                            diagonal && edges.contains_key(&(a.min(b), a.max(b)))
+                        })
                 });
+                if overlaps || tris.len() + 2 != ring.len() || ring.len() < 3 {
+                    fill.blocked += 1;
+                    continue;
+                }
+                for t in &tris {
+                    for k in 0..3 {
+                        let (a, b) = (t[k], t[(k + 1) % 3]);
+                        edges.insert((a.min(b), a.max(b)), ());
+                    }
+                }
+                let near = index[CornerTable::t(loop_corners[0]) as usize];
+                let near = self.triangles[near as usize]
+                    .source
+                    .unwrap_or(self.triangles[near as usize].near);
+                filled.push(Filled {
+                    border: loop_corners.clone(),
+                    triangles: new_triangles.len()..new_triangles.len() + tris.len(),
+                    plane: plane_of(&ring, &self.points),
+                });
+                for t in tris {
+                    new_triangles.push(Triangle {
+                        corners: t.map(|v| at[&v]),
+                        source: None,
+                        near,
+                        flipped: false,
+                    });
+                }
+                fill.holes += 1;
+                fill.faces += ring.len() - 2;
             }
-            fill.holes += 1;
-            fill.faces += ring.len() - 2;
         }
         let flat = self.flat_closures(table, &border, &filled, &new_triangles);
         let mut keep = vec![true; new_triangles.len()];
@@ -1461,6 +1501,34 @@ impl Filled {
     fn face(&self) -> u32 {
         CornerTable::t(self.border[0])
     }
+}
+
+/// A closed border loop (corners whose opposite edges run it in order) split at the vertices it
+/// passes more than once, into loops that pass each vertex once: a figure-eight through a pinch
+/// (two holes meeting corner to corner) gives its two holes. Each edge `c` starts at `v(n(c))`.
+fn simple_loops(table: &CornerTable, corners: Vec<u32>) -> Vec<Vec<u32>> {
+    let start = |c: u32| table.v(CornerTable::n(c));
+    let mut out = Vec::new();
+    let mut stack: Vec<u32> = Vec::with_capacity(corners.len());
+    // The place in `stack` of the edge starting at each vertex.
+    let mut at: FxHashMap<u32, usize> = FxHashMap::default();
+    for c in corners {
+        let s = start(c);
+        if let Some(i) = at.get(&s).copied() {
+            // The edges from the one starting at `s` to here run from `s` back to `s`.
+            let cycle: Vec<u32> = stack.drain(i..).collect();
+            for &k in &cycle {
+                at.remove(&start(k));
+            }
+            out.push(cycle);
+        }
+        at.insert(s, stack.len());
+        stack.push(c);
+    }
+    if !stack.is_empty() {
+        out.push(stack);
+    }
+    out
 }
 
 /// The best-fit plane of loop `ring`: its unit Newell normal, the mean of its points and the

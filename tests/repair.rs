@@ -818,3 +818,64 @@ fn holes_are_traced_within_their_fans_at_a_pinch() {
     let a = analyse(&p.apply(&boxes), &Default::default());
     assert_eq!((a.holes(), a.nonmanifold_vertices), (0, 1));
 }
+
+/// Two square holes meeting corner to corner: the 2 x 2 plate (a closed slab) with the top faces
+/// of its cells (0, 0) and (1, 1) removed. Traced around their fans the two borders are one loop
+/// through the top centre (1, 1) twice, a figure-eight; split there, each 4-edge square is filled
+/// with 2 faces, and the slab is closed again, its centre vertex manifold (before: one hole, or
+/// none, was filled).
+#[test]
+fn holes_meeting_corner_to_corner_are_both_filled() {
+    let mut slab = shapes::plate(2, 2, &[]);
+    // Top vertex (x, y) is 3 y + x.
+    let cell = |x: u32, y: u32| [3 * y + x, 3 * y + x + 1, 3 * y + x + 4, 3 * y + x + 3];
+    slab.triangles.retain(|t| {
+        ![cell(0, 0), cell(1, 1)]
+            .iter()
+            .any(|c| t.iter().all(|v| c.contains(v)))
+    });
+    assert_eq!(slab.triangles.len(), 28);
+    let options = Options {
+        split_nonmanifold: false,
+        ..Options::default()
+    };
+    let p = plan(&slab, &options);
+    assert_eq!(p.summary(), "fill-holes:2(4 faces)");
+    let a = analyse(&p.apply(&slab), &Default::default());
+    assert_eq!(
+        (a.border_edges, a.holes(), a.nonmanifold_vertices),
+        (0, 0, 0)
+    );
+    let again = plan(&p.apply(&slab), &options);
+    assert!(!again.changes(), "{:?}", again.done);
+}
+
+/// A triangle and a small fan on one vertex O, welded with tolerance 0.4: the small fan
+/// (O (0.5, 0.2, 0) (0.3, 0.55, 0), centre 0.55 from O) cannot take a copy (half way is 0.27 from
+/// O), so the triangle (O (3, 0, 0) (3, 1, 0), fan centre (3, 0.5, 0)) takes it. A quarter of the
+/// way, (0.75, 0.125, 0), is clear of O but 0.26 from the small fan's corner (0.5, 0.2, 0): a copy
+/// there would weld onto it and pinch again (before: a split was claimed, the copy still pinched,
+/// and a second repair moved it again). The copy must keep clear of every fan's corners: half way,
+/// (1.5, 0.25, 0), 1.0 from that corner.
+#[test]
+fn a_split_copy_keeps_clear_of_every_fan_of_its_vertex() {
+    let options = Options {
+        weld_tolerance: 0.4,
+        ..Options::default()
+    };
+    let mesh = Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [3.0, 0.0, 0.0],
+            [3.0, 1.0, 0.0],
+            [0.5, 0.2, 0.0],
+            [0.3, 0.55, 0.0],
+        ],
+        vec![[0, 1, 2], [0, 3, 4]],
+    );
+    let (p, a) = repaired_with(&mesh, &options);
+    assert_eq!(p.summary(), "split-non-manifold-vertices:1");
+    assert_eq!(p.new_vertices.len(), 1);
+    assert_eq!(p.new_vertices[0].position, [1.5, 0.25, 0.0]);
+    assert_eq!(a.nonmanifold_vertices, 0);
+}
