@@ -249,15 +249,7 @@ fn stage_and_check(
     plans: &[Option<Plan>],
     settings: &Settings,
 ) -> Result<Checked, String> {
-    if let (Ok(a), Ok(b)) = (source.canonicalize(), out.canonicalize()) {
-        if a == b {
-            return Err(
-                "the repaired copy would overwrite its source: choose an output folder \
-                        outside the scanned files"
-                    .into(),
-            );
-        }
-    }
+    write::refuse_own_source(source, out).map_err(|e| e.to_string())?;
     let folder = out.parent().unwrap_or(dir);
     // Dropped last: the names stay claimed until the files are in place or removed.
     let claims = Claims::new(folder);

@@ -674,12 +674,13 @@ fn stl_binary() -> Vec<u8> {
     b
 }
 
-#[test]
-fn binary_stl_keeps_header_and_attribute_bytes() {
-    let (_dir, src, out) = dirs();
-    let bytes = stl_binary();
-    std::fs::write(src.join("cube.stl"), &bytes).unwrap();
-    let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(&src))
+/// Writes `bytes` as `src/cube.stl`, repairs it by hand (three faces flipped, a 4-5 split) into
+/// `out/cube.stl` and checks the copy is binary: `84 + 50 n` bytes, the source's header, each
+/// facet's attribute word kept (`0x8000 | source face`, 0 for new faces). Returns the plan, the
+/// source's mesh and the copy's bytes.
+fn binary_stl_copy(src: &Path, out: &Path, bytes: &[u8]) -> (Plan, Mesh, Vec<u8>) {
+    std::fs::write(src.join("cube.stl"), bytes).unwrap();
+    let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(src))
         .unwrap()
         .remove(0);
     let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
@@ -694,9 +695,19 @@ fn binary_stl_keeps_header_and_attribute_bytes() {
     assert_eq!(copy.len(), 84 + 50 * 12);
     assert_eq!(copy[..80], bytes[..80]);
     for (i, t) in plan.triangles.iter().enumerate() {
-        let facet = &copy[84 + 50 * i..84 + 50 * (i + 1)];
-        let attribute = u16::from_le_bytes([facet[48], facet[49]]);
+        let at = 84 + 50 * i + 48;
+        let attribute = u16::from_le_bytes([copy[at], copy[at + 1]]);
         assert_eq!(attribute, t.source.map_or(0, |s| 0x8000 | s as u16));
+    }
+    (plan, mesh, copy)
+}
+
+#[test]
+fn binary_stl_keeps_header_and_attribute_bytes() {
+    let (_dir, src, out) = dirs();
+    let (plan, _, copy) = binary_stl_copy(&src, &out, &stl_binary());
+    for i in 0..plan.triangles.len() {
+        let facet = &copy[84 + 50 * i..84 + 50 * (i + 1)];
         // The facet normal follows the final winding.
         let f = |k: usize| f32::from_le_bytes(facet[4 * k..4 * k + 4].try_into().unwrap()) as f64;
         let p = |v: usize| [f(3 + 3 * v), f(4 + 3 * v), f(5 + 3 * v)];
@@ -2006,27 +2017,8 @@ fn padded_binary_stl_copy_stays_binary() {
         let (_dir, src, out) = dirs();
         let mut bytes = stl_binary();
         bytes.extend_from_slice(pad);
-        std::fs::write(src.join("cube.stl"), &bytes).unwrap();
-        let mesh = read(&src.join("cube.stl"), Format::Stl, &cx(&src))
-            .unwrap()
-            .remove(0);
+        let (plan, mesh, _) = binary_stl_copy(&src, &out, &bytes);
         assert!(mesh.notes[0].starts_with(&format!("{} byte(s) after the 12 triangles", pad.len())));
-        let plan = hand_plan(&mesh, &[0, 1, 2], 6, 4, 5);
-        let copy_path = out.join("cube.stl");
-        round_trip(
-            &src.join("cube.stl"),
-            Format::Stl,
-            &[Some(plan.clone())],
-            &copy_path,
-        );
-        let copy = std::fs::read(&copy_path).unwrap();
-        assert_eq!(copy.len(), 84 + 50 * 12);
-        assert_eq!(copy[..80], bytes[..80]);
-        for (i, t) in plan.triangles.iter().enumerate() {
-            let at = 84 + 50 * i + 48;
-            let attribute = u16::from_le_bytes([copy[at], copy[at + 1]]);
-            assert_eq!(attribute, t.source.map_or(0, |s| 0x8000 | s as u16));
-        }
         let written = write_copy(
             &src.join("cube.stl"),
             Format::Stl,

@@ -959,6 +959,18 @@ fn plans(meshes: &[Mesh]) -> Vec<Option<Plan>> {
         .collect()
 }
 
+/// Writes the repaired copy of `source` (in the tree `root`) to `out`: what was written, with
+/// the writer's notes.
+fn copy_with_notes(
+    source: &Path,
+    plans: &[Option<Plan>],
+    out: &Path,
+    root: &Path,
+) -> meshvet::formats::write::Written {
+    meshvet::formats::write::write_copy(source, Format::ThreeMf, plans, out, &cx(root), None)
+        .unwrap()
+}
+
 fn cx(root: &Path) -> ReadContext {
     ReadContext {
         root: root.to_path_buf(),
@@ -1237,15 +1249,7 @@ fn a_repaired_copy_keeps_slicer_paint_and_other_triangle_attributes() {
         ]
     );
     let out = dir.path().join("out/painted.3mf");
-    let written = meshvet::formats::write::write_copy(
-        &source,
-        Format::ThreeMf,
-        &plans,
-        &out,
-        &cx(dir.path()),
-        None,
-    )
-    .unwrap();
+    let written = copy_with_notes(&source, &plans, &out, dir.path());
     assert_eq!(
         written.notes.len(),
         1,
@@ -1328,15 +1332,7 @@ fn stale_slicer_volume_ranges_are_noted() {
         ]
     );
     let out = dir.path().join("out/project.3mf");
-    let written = meshvet::formats::write::write_copy(
-        &source,
-        Format::ThreeMf,
-        &plans(&meshes),
-        &out,
-        &cx(dir.path()),
-        None,
-    )
-    .unwrap();
+    let written = copy_with_notes(&source, &plans(&meshes), &out, dir.path());
     let ranges: Vec<&String> = written
         .notes
         .iter()
@@ -1371,15 +1367,7 @@ fn a_triangle_attribute_with_a_nul_is_left_out_with_a_note() {
     std::fs::write(&source, package(&text)).unwrap();
     let meshes = read(&source, Format::ThreeMf, &cx(dir.path())).unwrap();
     let out = dir.path().join("out/nul.3mf");
-    let written = meshvet::formats::write::write_copy(
-        &source,
-        Format::ThreeMf,
-        &plans(&meshes),
-        &out,
-        &cx(dir.path()),
-        None,
-    )
-    .unwrap();
+    let written = copy_with_notes(&source, &plans(&meshes), &out, dir.path());
     assert!(
         written.notes.iter().any(|n| n.starts_with(
             "object 1 of /3D/3dmodel.model: 1 attribute(s) of its triangles hold a NUL character"

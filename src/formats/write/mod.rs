@@ -88,6 +88,21 @@ impl Job<'_> {
         }
     }
 
+    /// The source's bytes and its one mesh, read again (for a writer that keeps nothing of the
+    /// scan's read: its parse costs little next to the copy's).
+    pub(crate) fn source_and_mesh(&self) -> Result<(Vec<u8>, Mesh), WriteError> {
+        let bytes = std::fs::read(self.source)?;
+        let mesh = super::read(self.source, self.format, self.cx)?
+            .pop()
+            .ok_or_else(|| {
+                WriteError::new(format!(
+                    "the {} reader returned no mesh",
+                    self.format.name().to_uppercase()
+                ))
+            })?;
+        Ok((bytes, mesh))
+    }
+
     /// What a writer wrote: the copy, the `side` files beside it, and `notes`.
     pub(crate) fn written(&self, side: Vec<PathBuf>, notes: Vec<String>) -> Written {
         let mut files = vec![self.out.to_path_buf()];
@@ -139,15 +154,7 @@ pub fn write_claimed(
     retained: Option<(&Mesh, super::Retained)>,
     claims: &Claims,
 ) -> Result<Written, WriteError> {
-    let same = match (source.canonicalize(), out.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    };
-    if same {
-        return Err(WriteError::new(
-            "the repaired copy would overwrite its source: choose an output folder outside the scanned files",
-        ));
-    }
+    refuse_own_source(source, out)?;
     let size = std::fs::metadata(source)?.len();
     if size > cx.limits.max_file_bytes {
         return Err(WriteError::new(format!(
@@ -164,6 +171,17 @@ pub fn write_claimed(
         retained,
         claims,
     })
+}
+
+/// Refuses a copy whose place `out` is its `source` itself (a scan's copy goes to its final place
+/// only after it is written elsewhere, so the scan asks before staging it, and so does each write).
+pub fn refuse_own_source(source: &Path, out: &Path) -> Result<(), WriteError> {
+    match (source.canonicalize(), out.canonicalize()) {
+        (Ok(a), Ok(b)) if a == b => Err(WriteError::new(
+            "the repaired copy would overwrite its source: choose an output folder outside the scanned files",
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, creating

@@ -26,7 +26,7 @@ use super::{
     normal_sums, polygon_corner, renumber, write_atomic, Item, Job, Polygons, WriteError, Written,
 };
 use crate::formats::ply::{header, next_line, scalar, scalar_size};
-use crate::formats::{read, Format, ReadContext};
+use crate::mesh::Mesh;
 use crate::repair::Plan;
 
 /// The records of one element: record `i` is `values[starts[i]..starts[i + 1]]`, a list stored as
@@ -45,21 +45,14 @@ impl Element {
 
 /// Writes the copy, with notes on what it could not keep (elements left out, records dropped).
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    let notes = copy(job.source, job.single()?, job.out, job.cx)?;
+    let (bytes, mesh) = job.source_and_mesh()?;
+    let notes = copy(&bytes, &mesh, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), notes))
 }
 
-fn copy(
-    source: &Path,
-    plan: &Plan,
-    out: &Path,
-    cx: &ReadContext,
-) -> Result<Vec<String>, WriteError> {
-    let bytes = std::fs::read(source)?;
-    let mesh = read(source, Format::Ply, cx)?
-        .pop()
-        .ok_or_else(|| WriteError::new("the PLY reader returned no mesh"))?;
-    let (text, header, start) = header(&bytes)?;
+/// The copy of the source `bytes`, read as `mesh`.
+fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String>, WriteError> {
+    let (text, header, start) = header(bytes)?;
     if header.elements.contains_key("tristrips") {
         return Err(WriteError::new(
             "PLY triangle strips (`tristrips`) cannot be written yet: convert the file to faces",
@@ -83,11 +76,11 @@ fn copy(
     let polygons = match face_element {
         Some(e) => {
             let slot = index_slot(e).unwrap_or(0);
-            Polygons::new(e.def.count, |i, out| list_into(e, i, slot, out), &mesh)?
+            Polygons::new(e.def.count, |i, out| list_into(e, i, slot, out), mesh)?
         }
-        None => Polygons::new(0, |_, _| {}, &mesh)?,
+        None => Polygons::new(0, |_, _| {}, mesh)?,
     };
-    let items = polygons.items(plan, &mesh);
+    let items = polygons.items(plan, mesh);
     let (index, kept) = renumber(plan);
     let mut notes = Vec::new();
 
@@ -123,7 +116,7 @@ fn copy(
     }
 
     let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
-    let sums = normal_sums(plan, &mesh, |c| Some(c.vertex));
+    let sums = normal_sums(plan, mesh, |c| Some(c.vertex));
 
     let mut body = Body::new(header.encoding);
     // Each element's new count; `None`: left out of the copy.
@@ -147,9 +140,9 @@ fn copy(
                     if !used {
                         continue;
                     }
-                    let from = super::original(plan, &mesh, v as u32) as usize;
+                    let from = super::original(plan, mesh, v as u32) as usize;
                     let mut record = e.record(from).to_vec();
-                    let p = plan.position(&mesh, v as u32);
+                    let p = plan.position(mesh, v as u32);
                     for (k, slot) in xyz.iter().enumerate() {
                         if let Some(s) = slot {
                             let at = scalar_at(e, &record, *s);
@@ -199,7 +192,7 @@ fn copy(
                     };
                     let origins: Vec<u32> = vertices
                         .iter()
-                        .map(|&v| super::original(plan, &mesh, v))
+                        .map(|&v| super::original(plan, mesh, v))
                         .collect();
                     let record = face_record(
                         e, face, slot, &corners, &vertices, &origins, &index, item, plan, &polygons,

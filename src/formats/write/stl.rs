@@ -10,28 +10,21 @@ use std::path::Path;
 
 use super::{write_atomic, Job, WriteError, Written};
 use crate::formats::stl::{layout, Layout};
-use crate::formats::{read, Format, ReadContext};
 use crate::geometry::{dot, normal};
+use crate::mesh::Mesh;
 use crate::repair::Plan;
 
 /// Writes the copy, with a note when the source's padding after its binary facets is left out.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    let notes = copy(job.source, job.single()?, job.out, job.cx)?;
+    let (bytes, mesh) = job.source_and_mesh()?;
+    let notes = copy(&bytes, &mesh, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), notes))
 }
 
-fn copy(
-    source: &Path,
-    plan: &Plan,
-    out: &Path,
-    cx: &ReadContext,
-) -> Result<Vec<String>, WriteError> {
-    let bytes = std::fs::read(source)?;
-    let mesh = read(source, Format::Stl, cx)?
-        .pop()
-        .ok_or_else(|| WriteError::new("the STL reader returned no mesh"))?;
+/// The copy of the source `bytes`, read as `mesh`.
+fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String>, WriteError> {
     // Binary exactly when the reader read it as binary (padded files too).
-    let (binary, extra) = match layout(&bytes)? {
+    let (binary, extra) = match layout(bytes)? {
         Layout::Binary { extra, .. } => (true, extra),
         Layout::Ascii | Layout::Empty => (false, 0),
     };
@@ -40,7 +33,7 @@ fn copy(
         .iter()
         .map(|t| {
             // Binary stores f32: the normal is taken from the positions as they will be stored.
-            let p = t.corners.map(|c| plan.position(&mesh, c.vertex));
+            let p = t.corners.map(|c| plan.position(mesh, c.vertex));
             let wide = if binary {
                 p.map(|q| q.map(|x| x as f32 as f64))
             } else {
@@ -76,7 +69,7 @@ fn copy(
         }
         b
     } else {
-        let name = solid_name(&bytes);
+        let name = solid_name(bytes);
         let mut s = String::with_capacity(250 * facets.len());
         let _ = writeln!(s, "solid {name}");
         for (n, p, _) in &facets {
