@@ -39,8 +39,8 @@ impl AtomicFile {
         let (file, temporary) = if special {
             (std::fs::OpenOptions::new().write(true).open(path)?, None)
         } else {
-            let temporary = temporary_name(path);
-            (File::create(&temporary)?, Some(temporary))
+            let (file, temporary) = create_temporary(path)?;
+            (file, Some(temporary))
         };
         Ok(AtomicFile {
             writer: Some(BufWriter::new(file)),
@@ -108,15 +108,43 @@ impl Drop for AtomicFile {
     }
 }
 
-/// `dir/.name.PID.N.tmp` beside `path`, so the final rename stays on one file system. `N` keeps
-/// temporary names distinct between threads of one process (the cache writes from every worker).
-fn temporary_name(path: &Path) -> PathBuf {
-    static NEXT: AtomicU64 = AtomicU64::new(0);
+/// The number of the next temporary name (see [`create_temporary`]).
+static NEXT: AtomicU64 = AtomicU64::new(0);
+
+/// The longest part of the target's name a temporary name repeats: the rest of the 255 bytes a
+/// file name may have is left for the dot, the process id, the number and `.tmp`.
+const NAME_IN_TEMPORARY: usize = 200;
+
+/// Creates a new temporary file `dir/.name.PID.N.tmp` beside `path`, so the final rename stays on
+/// one file system (`name` is the target's name, cut to its first [`NAME_IN_TEMPORARY`] bytes,
+/// so that a target of any name the file system takes has one). `N` keeps temporary names
+/// distinct between threads of one process (the cache writes from every worker). The file is
+/// created only if nothing is at its name, not even a link: a link planted there would otherwise
+/// be followed and the file it names overwritten, then renamed onto the target. A name that is
+/// taken is passed over for the next `N`.
+fn create_temporary(path: &Path) -> io::Result<(File, PathBuf)> {
     let name = path
         .file_name()
         .map_or_else(|| "report".into(), |n| n.to_string_lossy());
-    let n = NEXT.fetch_add(1, Ordering::Relaxed);
-    path.with_file_name(format!(".{name}.{}.{n}.tmp", std::process::id()))
+    let mut cut = name.len().min(NAME_IN_TEMPORARY);
+    while !name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    let name = &name[..cut];
+    let mut tries = 0;
+    loop {
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        let temporary = path.with_file_name(format!(".{name}.{}.{n}.tmp", std::process::id()));
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&temporary)
+        {
+            Ok(file) => return Ok((file, temporary)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && tries < 1000 => tries += 1,
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -193,6 +221,43 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&temporary).unwrap(), "new");
         file.commit().unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// Links planted at the temporary names a run would take (the process id and the numbers
+    /// are easy to guess) are passed over: the file a link names keeps its bytes, and the target
+    /// becomes a regular file, not a link.
+    #[cfg(unix)]
+    #[test]
+    fn a_link_at_a_temporary_name_is_never_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim.txt");
+        std::fs::write(&victim, "mine").unwrap();
+        let out = dir.path().join("out");
+        std::fs::create_dir(&out).unwrap();
+        let next = NEXT.load(Ordering::Relaxed);
+        for n in next..next + 64 {
+            let link = out.join(format!(".r.csv.{}.{n}.tmp", std::process::id()));
+            std::os::unix::fs::symlink(&victim, link).unwrap();
+        }
+        let target = out.join("r.csv");
+        let mut file = AtomicFile::create(&target).unwrap();
+        file.write_all(b"path\n").unwrap();
+        file.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "mine");
+        assert!(std::fs::symlink_metadata(&target).unwrap().is_file());
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "path\n");
+    }
+
+    /// A target whose name is as long as a file name may be gets a temporary name that fits.
+    #[test]
+    fn a_target_of_the_longest_name_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join(format!("{}.csv", "r".repeat(251)));
+        let mut file = AtomicFile::create(&target).unwrap();
+        file.write_all(b"path\n").unwrap();
+        file.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "path\n");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
