@@ -136,8 +136,9 @@ impl Reports {
 /// - inside a scanned tree, only a file that is a meshvet report already (or empty), since any
 ///   other file there may be a buffer, material library or texture a model names.
 ///
-/// Each report is compared by its real path with the sources of the same file name, so a scan
-/// of a million files costs nothing more; the trees are looked at only for a report that exists.
+/// Each report is compared by its real path with the sources of the same file name and with the
+/// paths named on the command line (a link there may have any name), so a scan of a million
+/// files costs nothing more; the trees are looked at only for a report that exists.
 pub fn refuse_reports_over_inputs(
     args: &Scan,
     sources: &[Source],
@@ -166,16 +167,24 @@ pub fn refuse_reports_over_inputs(
                 path.display()
             ));
         }
+        // A walked file is never a link, so its real name is its own; a path named on the
+        // command line may be a link of any name.
         let name = real.file_name();
-        if let Some(source) = sources
+        let read = sources
             .iter()
             .find(|s| s.path.file_name() == name && s.path.canonicalize().is_ok_and(|p| p == real))
-        {
+            .map(|s| s.display.clone())
+            .or_else(|| {
+                args.paths
+                    .iter()
+                    .find(|p| p.canonicalize().is_ok_and(|p| p == real))
+                    .map(|p| p.display().to_string())
+            });
+        if let Some(source) = read {
             return Err(format!(
-                "{flag} {} is a file this scan reads ({}): the report would replace it - \
+                "{flag} {} is a file this scan reads ({source}): the report would replace it - \
                  write the report outside the scanned files or under another name",
                 path.display(),
-                source.display
             ));
         }
         if config.as_ref() == Some(&real) {

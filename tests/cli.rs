@@ -453,6 +453,29 @@ fn a_report_never_replaces_a_scanned_file() {
     assert_eq!(rows(&read("r.csv")).len(), 2);
 }
 
+/// A link named on the command line reads the file it points to, whatever either is called:
+/// a report over that file is refused too (before, only a source of the report's own file name
+/// was compared, and `--csv ../assets/real_mesh.obj` replaced the mesh behind `link.obj`).
+#[cfg(unix)]
+#[test]
+fn a_report_never_replaces_the_file_behind_a_named_link() {
+    let tree = Tree::new(&[("assets/real_mesh.obj", TETRA), ("work/keep.txt", "")]);
+    std::os::unix::fs::symlink("../assets/real_mesh.obj", tree.path().join("work/link.obj"))
+        .unwrap();
+    let run = meshvet(
+        &tree.path().join("work"),
+        &["scan", "link.obj", "--csv", "../assets/real_mesh.obj", "-q"],
+    );
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(
+        run.stderr.contains("is a file this scan reads (link.obj)"),
+        "{}",
+        run.stderr
+    );
+    let mesh = std::fs::read_to_string(tree.path().join("assets/real_mesh.obj")).unwrap();
+    assert_eq!(mesh, TETRA);
+}
+
 /// Nor a file a model reads beside it (its material library, a texture) or the config in use:
 /// inside a scanned tree a report may replace only an earlier meshvet report (not another tool's
 /// table that has a `path` column) or an empty file, and nowhere the config. Each refusal exits 2
