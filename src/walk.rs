@@ -149,7 +149,13 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
                 .unwrap_or_else(|| given.clone());
             // The path as written (less `./`), so `a/part.obj` and `b/part.obj` stay apart.
             let display = normalise(given);
-            if !filter.admits(&[&name, &display]) {
+            // A folder the exclude globs name is left out with every file in it, as the walk
+            // leaves it out (`vendor` keeps `vendor/deep/part.obj` out).
+            let in_excluded_folder = display
+                .ancestors()
+                .skip(1)
+                .any(|folder| !folder.as_os_str().is_empty() && filter.excludes(&[folder]));
+            if in_excluded_folder || !filter.admits(&[&name, &display]) {
                 continue;
             }
             if !seen.first(|| real(given)) {

@@ -709,6 +709,28 @@ fn excludes_apply_to_named_files_too() {
     assert_eq!(paths, ["ok.obj"]);
 }
 
+/// A glob naming a folder (`vendor`) keeps out a file named below it, as the walk of `.` does
+/// (before, only the file's name and whole path were matched, and the hook reported
+/// `vendor/deep/bad.obj`).
+#[test]
+fn an_excluded_folder_keeps_out_files_named_below_it() {
+    let tree = Tree::new(&[
+        ("meshvet.toml", "exclude = [\"vendor\"]\n"),
+        ("vendor/deep/bad.obj", INSIDE_OUT),
+        ("src/ok.obj", TETRA),
+    ]);
+    let walked = meshvet(tree.path(), &["scan", "--csv", "-"]);
+    assert_eq!(rows(&walked.stdout).len(), 1, "{}", walked.stdout);
+    for named in ["vendor/deep/bad.obj", "./vendor/deep/bad.obj"] {
+        let run = meshvet(
+            tree.path(),
+            &["scan", "src/ok.obj", named, "--format", "lines"],
+        );
+        assert_eq!(run.code, 0, "{named}: {}", run.stdout);
+        assert!(!run.stdout.contains("bad.obj"), "{named}: {}", run.stdout);
+    }
+}
+
 #[test]
 fn hostile_files_get_rows_and_the_good_file_is_still_reported() {
     let tree = Tree::new(&[("good.obj", TETRA), ("empty.obj", "")]);
