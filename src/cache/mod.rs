@@ -226,9 +226,13 @@ impl Cache {
         };
         self.misses.fetch_add(1, Ordering::Relaxed);
         let outcomes = fresh();
+        // The fresh scan read the file again: if it changed after the hash was taken, the
+        // outcomes may be of other bytes than the key's, and stored under it they would be hit
+        // once the file holds the hashed bytes again.
         let storable = outcomes
             .iter()
-            .all(|o| o.row.status != Some(Status::Error) && o.detail.is_none());
+            .all(|o| o.row.status != Some(Status::Error) && o.detail.is_none())
+            && self.unchanged_since(source, &miss.meta);
         if storable {
             let written = catch_unwind(AssertUnwindSafe(|| {
                 encode(&outcomes).and_then(|payload| {
@@ -312,6 +316,27 @@ impl Cache {
             key,
             content,
             meta,
+        })
+    }
+
+    /// Whether the file and its dependencies still carry the stamps `meta` took before their
+    /// content was hashed. Where no stamps are taken (not on unix) it cannot tell, and says yes.
+    fn unchanged_since(&self, source: &Source, meta: &Meta) -> bool {
+        if meta.stamps.is_empty() {
+            return true;
+        }
+        let Some(format) = source.format else {
+            return false;
+        };
+        let deps = Dependencies {
+            format,
+            source,
+            location: OnceCell::new(),
+        };
+        stamps(&source.path, &deps, &meta.dependencies).is_some_and(|now| {
+            let mut bytes = Vec::with_capacity(64 * now.len());
+            put_stamps(&mut bytes, &now);
+            bytes == meta.stamps
         })
     }
 

@@ -104,6 +104,35 @@ fn tree(dir: &Path, count: usize) -> Vec<Source> {
     walk(&[tree], &Filter::everything())
 }
 
+/// A file replaced while it is scanned (after the cache hashed it, before the reader read it),
+/// then put back: the outcomes of the other bytes are not stored under the first bytes' key
+/// (before, the next run hit them: an open triangle reported as the tetrahedron).
+#[cfg(unix)]
+#[test]
+fn a_file_changed_during_its_scan_is_not_stored() {
+    let (dir, source) = setup();
+    let path = source.path.clone();
+    let settings = Settings::default();
+    let cache = open(dir.path());
+    let during = cache.outcomes(&source, || {
+        let other = dir.path().join("other.obj");
+        std::fs::write(&other, TETRA).unwrap();
+        std::fs::rename(&other, &path).unwrap();
+        scan_file(&source, &settings)
+    });
+    assert_eq!(
+        during[0].row.faces,
+        Some(4),
+        "the scan read the tetrahedron"
+    );
+    cache.finish().unwrap();
+    std::fs::write(&path, OPEN).unwrap();
+    let (stats, outcomes) = run(dir.path(), std::slice::from_ref(&source));
+    assert_eq!((stats.hits, stats.misses), (0, 1));
+    assert_eq!(outcomes, fresh(std::slice::from_ref(&source)));
+    assert_eq!(outcomes[0][0].row.faces, Some(1));
+}
+
 #[test]
 fn a_hit_equals_a_fresh_scan_except_millis() {
     let (dir, source) = setup();
