@@ -279,11 +279,29 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     if let Some(dir) = &args.repair_dir {
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create the repair folder {}: {e}", dir.display()))?;
-        // Copies written in an earlier run are not scanned as sources.
+        // Copies written in an earlier run are not scanned as sources, nor anything else in the
+        // repair folder (its copies would be copied into it again); files meshvet did not put
+        // there are counted, so that leaving them out is said.
         let real = dir
             .canonicalize()
             .map_err(|e| format!("{}: {e}", dir.display()))?;
-        sources.retain(|s| !s.path.canonicalize().is_ok_and(|p| p.starts_with(&real)));
+        let mut not_copies = 0usize;
+        sources.retain(|s| {
+            let Some(inside) = s.path.canonicalize().ok().filter(|p| p.starts_with(&real)) else {
+                return true;
+            };
+            if !meshvet::copies::ledger::lists(&real, &inside) {
+                not_copies += 1;
+            }
+            false
+        });
+        if not_copies > 0 && !args.quiet {
+            eprintln!(
+                "meshvet: not scanned: {not_copies} mesh file(s) inside the repair folder {} that \
+                 meshvet did not write - move them out of the repair folder to scan them",
+                dir.display()
+            );
+        }
         settings.repair_dir = Some(dir.clone());
     }
     if let Some(shard) = &args.shard {

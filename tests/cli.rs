@@ -1055,7 +1055,11 @@ fn a_partial_repair_reports_what_is_left() {
 }
 
 /// A repair folder inside the scanned tree holds last night's copies: they are not scanned as
-/// sources. A repair folder that holds the scanned folder would hide every source: refused.
+/// sources, and a copy replaces only the copy meshvet put there, unchanged. A file of the user's
+/// at a copy's place stays (the copy fails, with a note), and mesh files there that meshvet did
+/// not write are said not to be scanned (before, the user's file was silently replaced and left
+/// out of the report). A repair folder that holds the scanned folder would hide every source:
+/// refused.
 #[test]
 fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
     let tree = Tree::new(&[
@@ -1063,22 +1067,58 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
         ("in/fixed/inside_out.obj", TETRA),
         ("in/fixed/stale.obj", TRIANGLE),
     ]);
-    let run = meshvet(
-        tree.path(),
-        &["scan", "in", "--repair-dir", "in/fixed", "--csv", "-"],
-    );
+    let args = ["scan", "in", "--repair-dir", "in/fixed", "--csv", "-"];
+    let run = meshvet(tree.path(), &args);
     let paths: Vec<String> = rows(&run.stdout)
         .into_iter()
         .map(|r| r[0].clone())
         .collect();
     assert_eq!(paths, ["inside_out.obj"], "{}", run.stderr);
     let row = &rows(&run.stdout)[0];
-    assert_eq!(
-        row[column("repairs")],
-        "flip-inside-out-shells:1(4 faces)",
-        "one shell of the tetrahedron's four faces"
+    assert_eq!(row[column("repairs")], "", "{row:?}");
+    assert!(
+        row[column("message")].contains("meshvet did not write it"),
+        "{row:?}"
     );
-    assert_eq!(row[column("status_after")], "pass", "{row:?}");
+    let read = |name: &str| std::fs::read_to_string(tree.path().join(name)).unwrap();
+    assert_eq!(
+        read("in/fixed/inside_out.obj"),
+        TETRA,
+        "the user's file stays"
+    );
+    assert!(
+        run.stderr
+            .contains("not scanned: 2 mesh file(s) inside the repair folder in/fixed"),
+        "{}",
+        run.stderr
+    );
+
+    // Into an empty place the copy goes; the next run replaces it, and only it.
+    std::fs::remove_file(tree.path().join("in/fixed/inside_out.obj")).unwrap();
+    for _ in 0..2 {
+        let run = meshvet(tree.path(), &args);
+        let row = &rows(&run.stdout)[0];
+        assert_eq!(
+            row[column("repairs")],
+            "flip-inside-out-shells:1(4 faces)",
+            "one shell of the tetrahedron's four faces: {row:?}"
+        );
+        assert_eq!(row[column("status_after")], "pass", "{row:?}");
+        assert!(
+            run.stderr.contains("not scanned: 1 mesh file(s)"),
+            "stale.obj only: {}",
+            run.stderr
+        );
+    }
+    // A copy changed by hand since is not replaced either.
+    std::fs::write(tree.path().join("in/fixed/inside_out.obj"), TETRA).unwrap();
+    let run = meshvet(tree.path(), &args);
+    let row = &rows(&run.stdout)[0];
+    assert!(
+        row[column("message")].contains("has changed since"),
+        "{row:?}"
+    );
+    assert_eq!(read("in/fixed/inside_out.obj"), TETRA);
 
     let refused = meshvet(tree.path(), &["scan", "in", "--repair-dir", "."]);
     assert_eq!(refused.code, 2, "{}", refused.stderr);
@@ -1374,7 +1414,15 @@ fn names_that_are_not_utf8_are_three_rows_in_one_shard_each_and_copied_by_their_
         .map(|e| e.unwrap().file_name().as_bytes().to_vec())
         .collect();
     written.sort();
-    assert_eq!(written, [b"bad\xfe.obj".to_vec(), b"bad\xff.obj".to_vec()]);
+    assert_eq!(
+        written,
+        [
+            b".meshvet-copies".to_vec(),
+            b"bad\xfe.obj".to_vec(),
+            b"bad\xff.obj".to_vec()
+        ],
+        "the two copies, and the list of the copies meshvet wrote"
+    );
 }
 
 /// The same file given twice, as part of a folder and by another spelling (absolute, through

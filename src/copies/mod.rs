@@ -11,9 +11,12 @@
 //! written, the source is untouched` note. Names in the final folder are claimed first
 //! ([`write::names`]): the copy's own path, and each side file's name for its bytes, so copies
 //! made at the same time never put different files under one name; a side file is never moved
-//! over a different file. A panic in the planning, the writer or the re-check is
+//! over a different file, and a copy only over the copy meshvet put there before, unchanged
+//! ([`ledger`]). A panic in the planning, the writer or the re-check is
 //! caught here and becomes the same note. A planner that fails on one mesh costs that mesh's repair
 //! only; the file's other meshes are still repaired.
+
+pub mod ledger;
 
 use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -291,7 +294,7 @@ fn stage_and_check(
             })
         })
         .collect();
-    stage.commit(&written.files, folder, &claims)?;
+    stage.commit(&written.files, dir, folder, &claims)?;
     Ok(Checked {
         after,
         notes: written.notes,
@@ -338,14 +341,21 @@ impl Stage {
     }
 
     /// Moves `files` (the copy first, then its side files, all inside the stage) to the same
-    /// places under `folder`: side files first, the copy last, so a copy never refers to a side
-    /// file that is not there yet. A side file never replaces a file: its place was claimed for its
-    /// bytes (by the writer, else here), and a place that already holds the same bytes (the same
-    /// library another copy brought, the source's own file) is left alone, while a place holding
-    /// anything else fails the commit. The copy replaces an earlier copy at its place. If a move
-    /// fails, the side files this call moved in are removed again, unless another copy claims or
-    /// names them.
-    fn commit(&mut self, files: &[PathBuf], folder: &Path, claims: &Claims) -> Result<(), String> {
+    /// places under `folder` (in the repair folder `root`): side files first, the copy last, so a
+    /// copy never refers to a side file that is not there yet. A side file never replaces a file:
+    /// its place was claimed for its bytes (by the writer, else here), and a place that already
+    /// holds the same bytes (the same library another copy brought, the source's own file) is
+    /// left alone, while a place holding anything else fails the commit. The copy replaces only
+    /// the copy meshvet put at its place before, unchanged ([`ledger`]), and is listed there once
+    /// in place. If a move fails, the side files this call moved in are removed again, unless
+    /// another copy claims or names them.
+    fn commit(
+        &mut self,
+        files: &[PathBuf],
+        root: &Path,
+        folder: &Path,
+        claims: &Claims,
+    ) -> Result<(), String> {
         let places: Vec<(PathBuf, PathBuf)> = files
             .iter()
             .map(|f| {
@@ -359,6 +369,16 @@ impl Stage {
                     })
             })
             .collect::<Result<_, _>>()?;
+        let Some((staged, place)) = places.first() else {
+            return Err(
+                "the writer wrote no copy (internal error: please report this file)".into(),
+            );
+        };
+        ledger::may_replace(root, place)?;
+        let mut hasher = blake3::Hasher::new();
+        let digest = std::fs::File::open(staged)
+            .and_then(|f| hasher.update_reader(f).map(|h| h.finalize()))
+            .map_err(|e| format!("cannot read the staged copy {}: {e}", staged.display()))?;
         let mut moved: Vec<PathBuf> = Vec::new();
         let undo = |moved: &[PathBuf]| {
             for m in moved {
@@ -392,6 +412,7 @@ impl Stage {
                 }
             }
         }
+        ledger::record(root, place, digest);
         claims.committed();
         self.committed = true;
         Ok(())
