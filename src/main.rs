@@ -277,8 +277,20 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
     let mut sources = walk::walk_within(&args.paths, &filter, args.root.as_deref());
     outputs::refuse_reports_over_inputs(args, &sources, config_file.as_deref())?;
     if let Some(dir) = &args.repair_dir {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("cannot create the repair folder {}: {e}", dir.display()))?;
+        if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
+            return Err(format!(
+                "the repair folder {} is a file, not a folder - name a folder (it is created if \
+                 it does not exist)",
+                dir.display()
+            ));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| {
+            format!(
+                "cannot create the repair folder {}: {e} - check the path and that its parent \
+                 can be written",
+                dir.display()
+            )
+        })?;
         // Copies written in an earlier run are not scanned as sources, nor anything else in the
         // repair folder (its copies would be copied into it again); files meshvet did not put
         // there are counted, so that leaving them out is said.

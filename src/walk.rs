@@ -293,9 +293,18 @@ fn walk_folder(folder: &Folder<'_>, filter: &Filter, seen: &mut Seen, sources: &
                         .filter(|d| !d.is_empty())
                         .unwrap_or_else(|| ".".into());
                 }
-                let why = e
-                    .io_error()
-                    .map_or_else(|| e.to_string(), |io| io.to_string());
+                // What to do follows from why: only a refused read is about permissions.
+                let (why, todo) = match e.io_error() {
+                    Some(io) if io.kind() == std::io::ErrorKind::PermissionDenied => {
+                        (io.to_string(), "check its permissions")
+                    }
+                    Some(io) if io.kind() == std::io::ErrorKind::NotFound => (
+                        io.to_string(),
+                        "it was removed or renamed during the scan; scan again",
+                    ),
+                    Some(io) => (io.to_string(), "check that the entry can be listed"),
+                    None => (e.to_string(), "check that the entry can be listed"),
+                };
                 sources.push(Source {
                     format: Format::of_path(&path),
                     display,
@@ -303,7 +312,7 @@ fn walk_folder(folder: &Folder<'_>, filter: &Filter, seen: &mut Seen, sources: &
                     path,
                     root: shared_root.clone(),
                     error: Some(format!(
-                        "cannot read this entry while walking the tree: {why} - check its permissions"
+                        "cannot read this entry while walking the tree: {why} - {todo}"
                     )),
                 });
             }
@@ -385,6 +394,41 @@ fn push_name(out: &mut String, name: &OsStr) {
 mod tests {
     use super::*;
     use std::fs;
+
+    /// An entry too deep for a path to reach (over 4,096 bytes here) gets its own error row, and
+    /// its advice is not about permissions (before, every walk error said "check its
+    /// permissions").
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn an_entry_whose_path_is_too_long_is_not_called_a_permissions_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let levels = 24;
+        let mut short = dir.path().join("t");
+        for _ in 0..levels {
+            short.push("d");
+        }
+        fs::create_dir_all(&short).unwrap();
+        fs::write(short.join("m.obj"), "").unwrap();
+        // Each level renamed to a long name, deepest first, so every rename's path stays short.
+        let long = "d".repeat(200);
+        for depth in (1..=levels).rev() {
+            let mut parent = dir.path().join("t");
+            for _ in 1..depth {
+                parent.push("d");
+            }
+            fs::rename(parent.join("d"), parent.join(&long)).unwrap();
+        }
+        let sources = walk(&[dir.path().join("t")], &Filter::everything());
+        let errors: Vec<&str> = sources.iter().filter_map(|s| s.error.as_deref()).collect();
+        assert!(!errors.is_empty(), "{sources:?}");
+        assert!(
+            errors
+                .iter()
+                .all(|e| e.contains("check that the entry can be listed")
+                    && !e.contains("permissions")),
+            "{errors:?}"
+        );
+    }
 
     fn tree(files: &[&str]) -> tempfile::TempDir {
         let dir = tempfile::tempdir().unwrap();

@@ -1132,6 +1132,25 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
     );
 }
 
+/// A repair folder named by an existing file is refused with what to do, before anything is
+/// scanned or written (before: "cannot create the repair folder ref.csv: File exists").
+#[test]
+fn a_file_named_as_the_repair_folder_is_refused_with_advice() {
+    let tree = Tree::new(&[("in/inside_out.obj", INSIDE_OUT), ("ref.csv", "mine")]);
+    let run = meshvet(tree.path(), &["scan", "in", "--repair-dir", "ref.csv"]);
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(
+        run.stderr
+            .contains("ref.csv is a file, not a folder - name a folder"),
+        "{}",
+        run.stderr
+    );
+    assert_eq!(
+        std::fs::read_to_string(tree.path().join("ref.csv")).unwrap(),
+        "mine"
+    );
+}
+
 /// The README's scan: every sample asset outside `rules/` (whose fixtures `tests/rules.rs` checks)
 /// gives what it was made to show. Clean ones in every format pass; the others carry the defect
 /// they were built with: an open shield under a mirrored node, a bracket placed twice by an
