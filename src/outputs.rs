@@ -235,7 +235,8 @@ fn scanned_trees(sources: &[Source]) -> Vec<PathBuf> {
 /// Lines, JUnit, HTML page): a file a report may replace inside a scanned tree.
 fn is_report(path: &Path) -> bool {
     let mut head = Vec::new();
-    let read = std::fs::File::open(path).and_then(|f| f.take(4096).read_to_end(&mut head));
+    let read =
+        meshvet::formats::open_regular(path).and_then(|f| f.take(4096).read_to_end(&mut head));
     if read.is_err() {
         return false;
     }

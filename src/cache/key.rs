@@ -12,10 +12,24 @@ pub(super) fn field(hasher: &mut blake3::Hasher, bytes: &[u8]) {
     hasher.update(bytes);
 }
 
+/// The bytes of the regular file at `path` (a FIFO or device put there since its path was looked
+/// at is refused, not waited on), at most `limit` of them: a file that grew past it is an error.
+pub(super) fn read_at_most(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::new();
+    crate::formats::open_regular(path)?
+        .take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(std::io::Error::other("over the size limit"));
+    }
+    Ok(bytes)
+}
+
 /// Hashes a dependency's bytes, or what it is when it cannot be read as a regular file.
 pub(super) fn hash_file(hasher: &mut blake3::Hasher, path: &Path, limit: u64) {
     match std::fs::metadata(path) {
-        Ok(m) if m.is_file() && m.len() <= limit => match std::fs::read(path) {
+        Ok(m) if m.is_file() && m.len() <= limit => match read_at_most(path, limit) {
             Ok(bytes) => {
                 hasher.update(b"file");
                 field(hasher, &bytes);

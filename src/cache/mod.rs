@@ -353,7 +353,7 @@ impl Cache {
             return None;
         }
         let before = stamps(&source.path, deps, &[]);
-        let bytes = std::fs::read(&source.path).ok()?;
+        let bytes = key::read_at_most(&source.path, self.max_file_bytes).ok()?;
         let dependencies = crate::formats::side_file_names(deps.format, &bytes);
         // Stamps of the dependencies too; the file's own was taken before reading it.
         let stamps = before.and_then(|mut own| {

@@ -174,7 +174,7 @@ pub fn may_replace(folder: &Path, place: &Path) -> Result<(), String> {
         ));
     };
     let mut hasher = blake3::Hasher::new();
-    let now = std::fs::File::open(place)
+    let now = crate::formats::open_regular(place)
         .and_then(|f| hasher.update_reader(f).map(|h| h.finalize()))
         .map_err(|e| format!("cannot read {}: {e}", place.display()))?;
     if now != listed {

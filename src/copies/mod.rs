@@ -505,5 +505,6 @@ fn same_bytes(a: &Path, b: &Path) -> bool {
         (Some(x), Some(y)) if x == y => {}
         _ => return false,
     }
-    matches!((std::fs::read(a), std::fs::read(b)), (Ok(x), Ok(y)) if x == y)
+    let read = crate::formats::read_regular;
+    matches!((read(a), read(b)), (Ok(x), Ok(y)) if x == y)
 }

@@ -379,17 +379,104 @@ pub(crate) fn check_file(path: &Path, limits: &Limits) -> Result<u64, ReadError>
     }
     let size = meta.len();
     if size > limits.max_file_bytes {
-        return Err(ReadError::new(format!(
-            "file is {size} bytes, over the limit of {} bytes: raise limits.max_file_bytes in the config to scan it",
-            limits.max_file_bytes
-        )));
+        return Err(over_limit(size, limits));
     }
     Ok(size)
+}
+
+/// Opens `path` for reading if what is opened is a regular file: checked on the opened file
+/// itself, so a file replaced by a FIFO or a device after its path was looked at is refused, not
+/// waited on (on unix the open itself does not wait for a FIFO's writer).
+pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut options = std::fs::File::options();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = options.open(path)?;
+    match not_regular(&file.metadata()?) {
+        None => Ok(file),
+        Some(kind) => Err(std::io::Error::other(not_regular_message(kind))),
+    }
+}
+
+/// The bytes of the regular file at `path` ([`open_regular`]).
+pub fn read_regular(path: &Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut file = open_regular(path)?;
+    let mut bytes = Vec::new();
+    file.read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// [`open_regular`], and within the size limit: what [`check_file`] said of the path, said again
+/// of the file opened (a larger file may have replaced it).
+pub(crate) fn open_file(path: &Path, limits: &Limits) -> Result<(std::fs::File, u64), ReadError> {
+    let file = open_regular(path)?;
+    let size = file.metadata()?.len();
+    if size > limits.max_file_bytes {
+        return Err(over_limit(size, limits));
+    }
+    Ok((file, size))
+}
+
+/// The bytes of the file at `path` ([`open_file`]); never more than the size limit, even from a
+/// file that grows while it is read.
+pub(crate) fn read_bytes(path: &Path, limits: &Limits) -> Result<Vec<u8>, ReadError> {
+    use std::io::Read as _;
+    let (file, size) = open_file(path, limits)?;
+    let mut bytes = Vec::with_capacity(size as usize);
+    file.take(limits.max_file_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limits.max_file_bytes {
+        return Err(over_limit(bytes.len() as u64, limits));
+    }
+    Ok(bytes)
+}
+
+fn over_limit(size: u64, limits: &Limits) -> ReadError {
+    ReadError::new(format!(
+        "file is {size} bytes, over the limit of {} bytes: raise limits.max_file_bytes in the config to scan it",
+        limits.max_file_bytes
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A file replaced by a FIFO after [`check_file`] looked at its path: every reader refuses
+    /// what it opened instead of waiting for a writer that never comes (before, the scan hung
+    /// there for good). Each reader is called directly, as after the swap.
+    #[cfg(unix)]
+    #[test]
+    fn every_reader_refuses_a_fifo_it_opens_instead_of_waiting() {
+        let dir = tempfile::tempdir().unwrap();
+        for entry in FORMATS {
+            let fifo = dir.path().join(format!("m.{}", entry.extensions[0]));
+            let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+            if !made.is_ok_and(|s| s.success()) {
+                eprintln!("no mkfifo here: skipped");
+                return;
+            }
+            let (send, receive) = std::sync::mpsc::channel();
+            let read = entry.read;
+            std::thread::spawn(move || {
+                let cx = ReadContext {
+                    root: fifo.parent().unwrap().to_path_buf(),
+                    limits: Limits::default(),
+                };
+                let _ = send.send(read(&fifo, &cx).map(|_| ()));
+            });
+            let result = receive
+                .recv_timeout(std::time::Duration::from_secs(10))
+                .unwrap_or_else(|_| panic!("the {} reader waits on a FIFO", entry.name));
+            let e = result.expect_err("a FIFO is no mesh file");
+            assert!(e.to_string().contains("FIFO"), "{}: {e}", entry.name);
+        }
+    }
 
     #[test]
     fn the_registry_is_in_format_order() {

@@ -85,7 +85,7 @@ fn read_with(
     cx: &ReadContext,
     detail: Option<Box<Detail>>,
 ) -> Result<(Vec<Mesh>, Option<Box<Detail>>), ReadError> {
-    let bytes = std::fs::read(path)?;
+    let bytes = super::read_bytes(path, &cx.limits)?;
     let mut parsed = parse_with(&bytes, cx, detail)?;
     if let Some(detail) = parsed.detail.as_mut() {
         detail.mtllibs = parsed
@@ -270,7 +270,7 @@ pub(crate) struct State {
 /// Reads the file's one mesh with the [`Detail`] a writer needs (no `.mtl` is looked at).
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
     super::check_file(path, &cx.limits)?;
-    let bytes = std::fs::read(path)?;
+    let bytes = super::read_bytes(path, &cx.limits)?;
     let parsed = parse_with(&bytes, cx, Some(Box::default()))?;
     let mut detail = parsed.detail.unwrap_or_default();
     detail.mtllibs = parsed.mtllibs.into_iter().map(|(name, _)| name).collect();
@@ -975,7 +975,7 @@ fn check_mtl(
     // At most the size limit is read, even if the file grows meanwhile.
     let limit = limits.max_file_bytes;
     let mut bytes = Vec::new();
-    let read = std::fs::File::open(&path)
+    let read = super::open_regular(&path)
         .and_then(|f| f.take(limit.saturating_add(1)).read_to_end(&mut bytes));
     match read {
         Ok(_) if bytes.len() as u64 > limit => not_read(format!(

@@ -16,7 +16,7 @@ use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let bytes = std::fs::read(path)?;
+    let bytes = super::read_bytes(path, &cx.limits)?;
     parse(&bytes, cx).map(|m| vec![m])
 }
 
@@ -83,7 +83,7 @@ pub(crate) struct Detail {
 /// Reads the file's one mesh with the [`Detail`] a writer needs.
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
     super::check_file(path, &cx.limits)?;
-    let bytes = std::fs::read(path)?;
+    let bytes = super::read_bytes(path, &cx.limits)?;
     let mut detail = Detail::default();
     let mesh = parse_with(&bytes, cx, Some(&mut detail))?;
     Ok((mesh, detail))

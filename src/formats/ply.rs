@@ -29,7 +29,7 @@ use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let bytes = std::fs::read(path)?;
+    let bytes = super::read_bytes(path, &cx.limits)?;
     parse(&bytes, cx).map(|m| vec![m])
 }
 

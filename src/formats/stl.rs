@@ -21,8 +21,7 @@ use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
 pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let mut file = std::fs::File::open(path)?;
-    let size = file.metadata()?.len();
+    let (mut file, size) = super::open_file(path, &cx.limits)?;
     // A binary file of exactly the size its header declares (the common case) is read in chunks,
     // never held whole; anything else is read whole and judged by `parse`.
     let mut header = [0u8; HEADER];

@@ -118,8 +118,8 @@ impl Files {
         for w in &wanted {
             // Sized from the file's size, within the limit; the file may shrink meanwhile.
             let mut bytes = Vec::with_capacity(w.bytes as usize);
-            let read =
-                std::fs::File::open(&w.path).and_then(|f| f.take(w.bytes).read_to_end(&mut bytes));
+            let read = crate::formats::open_regular(&w.path)
+                .and_then(|f| f.take(w.bytes).read_to_end(&mut bytes));
             if let Err(e) = read {
                 if w.needed {
                     return Err(ReadError::new(format!(

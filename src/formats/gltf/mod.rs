@@ -96,7 +96,7 @@ fn guard<T>(f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
 }
 
 fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    let bytes = std::fs::read(path)?;
+    let bytes = super::read_bytes(path, &cx.limits)?;
     let container = container::split(&bytes)?;
     let root = container::parse_model(container.json)?;
     if root.meshes.is_empty() {

@@ -57,7 +57,7 @@ pub struct Relationship {
 impl Package {
     /// Opens the package: refuses a file that is not a ZIP archive, or whose entries' names repeat.
     pub fn open(path: &Path, limits: &Limits) -> Result<Package, ReadError> {
-        let file = File::open(path)?;
+        let (file, _) = crate::formats::open_file(path, limits)?;
         let archive = ZipArchive::new(BufReader::new(file)).map_err(|e| {
             ReadError::new(format!(
                 "not a 3MF package: the file is not a readable ZIP archive ({e}); a .3mf file is a ZIP of XML parts - re-export it from the modelling program or slicer"

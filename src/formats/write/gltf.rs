@@ -61,7 +61,7 @@ fn write_unguarded(
     cx: &ReadContext,
     claims: &Claims,
 ) -> Result<Vec<PathBuf>, WriteError> {
-    let bytes = std::fs::read(source)?;
+    let bytes = crate::formats::read_regular(source)?;
     let container = container::split(&bytes)?;
     let model = container::parse_model(container.json)?;
     let meshes = read(source, Format::Gltf, cx)?;

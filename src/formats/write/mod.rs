@@ -91,7 +91,7 @@ impl Job<'_> {
     /// The source's bytes and its one mesh, read again (for a writer that keeps nothing of the
     /// scan's read: its parse costs little next to the copy's).
     pub(crate) fn source_and_mesh(&self) -> Result<(Vec<u8>, Mesh), WriteError> {
-        let bytes = std::fs::read(self.source)?;
+        let bytes = super::read_regular(self.source)?;
         let mesh = super::read(self.source, self.format, self.cx)?
             .pop()
             .ok_or_else(|| {

@@ -172,7 +172,7 @@ impl Claims {
         match std::fs::symlink_metadata(path) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => absent = true,
             Ok(m) if m.is_file() && m.len() == bytes.len() as u64 => {
-                if std::fs::read(path).ok().as_deref() != Some(bytes) {
+                if crate::formats::read_regular(path).ok().as_deref() != Some(bytes) {
                     return Err(Refused::OnDisk);
                 }
             }

@@ -429,7 +429,7 @@ fn library_copy(copier: &mut Copier<'_>, name: &str) -> Result<Option<String>, W
         Ok(real) => real,
         Err(not) => return not_copied(copier, why_not(&not)),
     };
-    let bytes = match std::fs::read(&real) {
+    let bytes = match crate::formats::read_regular(&real) {
         Ok(bytes) => bytes,
         Err(e) => return not_copied(copier, format!("it cannot be read ({e})")),
     };
@@ -508,7 +508,7 @@ fn texture_copy(
         Ok(real) => real,
         Err(not) => return not_copied(copier, why_not(&not)),
     };
-    let bytes = match std::fs::read(&real) {
+    let bytes = match crate::formats::read_regular(&real) {
         Ok(bytes) => bytes,
         Err(e) => return not_copied(copier, format!("it cannot be read ({e})")),
     };
