@@ -476,6 +476,17 @@ mod tests {
             let e = result.expect_err("a FIFO is no mesh file");
             assert!(e.to_string().contains("FIFO"), "{}: {e}", entry.name);
         }
+        // Nor does a writer copying a side file (a glTF's buffer or image) that became a FIFO.
+        let fifo = dir.path().join(format!("m.{}", FORMATS[0].extensions[0]));
+        let (send, receive) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = send.send(write::read_side(&fifo).map(|_| ()));
+        });
+        let result = receive
+            .recv_timeout(std::time::Duration::from_secs(10))
+            .expect("the writer waits on a FIFO");
+        let e = result.expect_err("a FIFO is no side file");
+        assert!(e.to_string().contains("FIFO"), "{e}");
     }
 
     #[test]

@@ -201,7 +201,8 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> 
 
 /// The bytes of `from`, a file the source refers to.
 pub(crate) fn read_side(from: &Path) -> Result<Vec<u8>, WriteError> {
-    std::fs::read(from).map_err(|e| WriteError(format!("cannot read {}: {e}", from.display())))
+    super::read_regular(from)
+        .map_err(|e| WriteError(format!("cannot read {}: {e}", from.display())))
 }
 
 /// Writes `bytes`, read from `from`, to `to` atomically, unless `to` is `from` itself.
