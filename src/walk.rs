@@ -22,7 +22,9 @@
 //! `bad\xFF.obj` shows as `bad\\xFF.obj`. Every other name shows as it is.
 //!
 //! Include and exclude globs match the relative path or the report path, for walked and named files
-//! alike; `*` also crosses `/`. An excluded folder is not descended into.
+//! alike; `*` also crosses `/`. An excluded folder is not descended into, and a file or folder
+//! named on the command line inside one (below the current folder, or `--root`) is left out too;
+//! folders above the scanned tree are never matched.
 
 use std::collections::HashSet;
 use std::ffi::OsStr;
@@ -134,6 +136,12 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
             PathBuf::new()
         };
         if given.is_dir() {
+            // Inside the current folder (or `--root`), a folder named in a folder the exclude
+            // globs name is left out as the walk of `.` leaves it out.
+            let around = given_root.as_deref().map(real).or(current_real.clone());
+            if in_excluded_folder(filter, given, around.as_deref()) {
+                continue;
+            }
             let tree = given_root.clone().unwrap_or_else(|| given.as_path().into());
             let folder = Folder {
                 root: given,
@@ -149,18 +157,6 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
                 .unwrap_or_else(|| given.clone());
             // The path as written (less `./`), so `a/part.obj` and `b/part.obj` stay apart.
             let display = normalise(given);
-            // A folder the exclude globs name is left out with every file in it, as the walk
-            // leaves it out (`vendor` keeps `vendor/deep/part.obj` out).
-            let in_excluded_folder = display
-                .ancestors()
-                .skip(1)
-                .any(|folder| !folder.as_os_str().is_empty() && filter.excludes(&[folder]));
-            if in_excluded_folder || !filter.admits(&[&name, &display]) {
-                continue;
-            }
-            if !seen.first(|| real(given)) {
-                continue;
-            }
             let folder = match given.parent() {
                 Some(p) if !p.as_os_str().is_empty() => p,
                 _ => Path::new("."),
@@ -174,6 +170,17 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
                 None if inside_current => current.clone(),
                 None => folder.into(),
             };
+            // A folder the exclude globs name is left out with every file in it, as the walk
+            // leaves it out (`vendor` keeps `vendor/deep/part.obj` out), counting the folders of
+            // the file's tree only.
+            if in_excluded_folder(filter, folder, Some(&real(&root)))
+                || !filter.admits(&[&name, &display])
+            {
+                continue;
+            }
+            if !seen.first(|| real(given)) {
+                continue;
+            }
             // Only regular files are read: a FIFO or a device named here would block the scan.
             let error = match std::fs::metadata(given) {
                 Ok(meta) => {
@@ -195,6 +202,22 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
     // orders the list.
     sources.sort_by(|a, b| a.display.cmp(&b.display));
     sources
+}
+
+/// Whether `folder` is, or lies in, a folder the exclude globs name, by its path below `tree` (a
+/// real path): the folders above the tree are not the user's to exclude (`**/build` must not
+/// leave out a project kept under `/tmp/build`). `false` for a folder outside the tree or that
+/// cannot be resolved.
+fn in_excluded_folder(filter: &Filter, folder: &Path, tree: Option<&Path>) -> bool {
+    let (Some(tree), Ok(folder)) = (tree, folder.canonicalize()) else {
+        return false;
+    };
+    let Ok(inside) = folder.strip_prefix(tree) else {
+        return false;
+    };
+    inside
+        .ancestors()
+        .any(|f| !f.as_os_str().is_empty() && filter.excludes(&[f]))
 }
 
 /// The real paths of the files listed so far, when a file can be reached twice.

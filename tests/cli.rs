@@ -721,13 +721,39 @@ fn an_excluded_folder_keeps_out_files_named_below_it() {
     ]);
     let walked = meshvet(tree.path(), &["scan", "--csv", "-"]);
     assert_eq!(rows(&walked.stdout).len(), 1, "{}", walked.stdout);
-    for named in ["vendor/deep/bad.obj", "./vendor/deep/bad.obj"] {
+    for named in [
+        "vendor/deep/bad.obj",
+        "./vendor/deep/bad.obj",
+        "vendor/deep",
+    ] {
         let run = meshvet(
             tree.path(),
             &["scan", "src/ok.obj", named, "--format", "lines"],
         );
         assert_eq!(run.code, 0, "{named}: {}", run.stdout);
         assert!(!run.stdout.contains("bad.obj"), "{named}: {}", run.stdout);
+    }
+}
+
+/// Folders above the scanned tree are not matched: a project kept under a folder `build` is
+/// scanned whole with `exclude = ["**/build"]`, its files named by absolute path too (a first
+/// version of the fix above matched every folder of the path as written and left them out).
+#[test]
+fn folders_above_the_tree_are_not_excluded() {
+    let tree = Tree::new(&[
+        ("build/proj/meshvet.toml", "exclude = [\"**/build\"]\n"),
+        ("build/proj/models/bad.obj", INSIDE_OUT),
+    ]);
+    let project = tree.path().join("build/proj");
+    let absolute = project.join("models/bad.obj");
+    for args in [
+        vec!["scan", "--csv", "-"],
+        vec!["scan", "models/bad.obj", "--csv", "-"],
+        vec!["scan", absolute.to_str().unwrap(), "--csv", "-"],
+        vec!["scan", "models", "--csv", "-"],
+    ] {
+        let run = meshvet(&project, &args);
+        assert_eq!(rows(&run.stdout).len(), 1, "{args:?}: {}", run.stdout);
     }
 }
 
