@@ -302,7 +302,9 @@ fn run_scan(args: &cli::Scan) -> Result<ExitCode, String> {
             let Some(inside) = s.path.canonicalize().ok().filter(|p| p.starts_with(&real)) else {
                 return true;
             };
-            if !meshvet::copies::ledger::lists(&real, &inside) {
+            // Each shard counts its own.
+            let in_shard = args.shard.as_ref().is_none_or(|k| k.contains(&s.display));
+            if in_shard && !meshvet::copies::ledger::lists(&real, &inside) {
                 not_copies += 1;
             }
             false

@@ -1103,7 +1103,7 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
     let row = &rows(&run.stdout)[0];
     assert_eq!(row[column("repairs")], "", "{row:?}");
     assert!(
-        row[column("message")].contains("meshvet did not write it"),
+        row[column("message")].contains("is not in the repair folder's list of the copies"),
         "{row:?}"
     );
     let read = |name: &str| std::fs::read_to_string(tree.path().join(name)).unwrap();
@@ -1146,6 +1146,19 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
     );
     assert_eq!(read("in/fixed/inside_out.obj"), TETRA);
 
+    // A list that cannot be written (a folder in its place) is said in the row of the copy it
+    // could not list; that copy is then refused by the next run, and says why.
+    std::fs::remove_file(tree.path().join("in/fixed/inside_out.obj")).unwrap();
+    std::fs::remove_file(tree.path().join("in/fixed/.meshvet-copies")).unwrap();
+    std::fs::create_dir(tree.path().join("in/fixed/.meshvet-copies")).unwrap();
+    let run = meshvet(tree.path(), &args);
+    let row = &rows(&run.stdout)[0];
+    assert_eq!(row[column("status_after")], "pass", "{row:?}");
+    assert!(
+        row[column("message")].contains("the next repair will not replace it"),
+        "{row:?}"
+    );
+
     let refused = meshvet(tree.path(), &["scan", "in", "--repair-dir", "."]);
     assert_eq!(refused.code, 2, "{}", refused.stderr);
     // A repair folder above the scanned folder holds it too.
@@ -1156,6 +1169,43 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
         "{}",
         refused.stderr
     );
+}
+
+/// Two scans repairing one tree into one folder at the same time (shards, parallel CI jobs) do
+/// not refuse each other's copies, and the next run replaces every copy (before, each scan read
+/// the list of copies once, and refused copies the other had put in place since).
+#[test]
+fn two_scans_into_one_repair_folder_keep_each_others_copies() {
+    let files: Vec<(String, &str)> = (0..40)
+        .map(|i| (format!("in/d{i}/inside_out.obj"), INSIDE_OUT))
+        .collect();
+    let tree = Tree::new(
+        &files
+            .iter()
+            .map(|(p, t)| (p.as_str(), *t))
+            .collect::<Vec<_>>(),
+    );
+    let spawn = |csv: &str| {
+        Command::new(env!("CARGO_BIN_EXE_meshvet"))
+            .args(["scan", "in", "--repair-dir", "fixed", "-q", "--csv", csv])
+            .current_dir(tree.path())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    for round in 0..2 {
+        let (mut a, mut b) = (spawn("a.csv"), spawn("b.csv"));
+        a.wait().unwrap();
+        b.wait().unwrap();
+        for csv in ["a.csv", "b.csv"] {
+            let text = std::fs::read_to_string(tree.path().join(csv)).unwrap();
+            let failed: Vec<Vec<String>> = rows(&text)
+                .into_iter()
+                .filter(|r| r[column("message")].contains("repair failed"))
+                .collect();
+            assert!(failed.is_empty(), "round {round}, {csv}: {failed:?}");
+        }
+    }
 }
 
 /// A repair folder named by an existing file is refused with what to do, before anything is

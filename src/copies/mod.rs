@@ -294,11 +294,10 @@ fn stage_and_check(
             })
         })
         .collect();
-    stage.commit(&written.files, dir, folder, &claims)?;
-    Ok(Checked {
-        after,
-        notes: written.notes,
-    })
+    let unlisted = stage.commit(&written.files, dir, folder, &claims)?;
+    let mut notes = written.notes;
+    notes.extend(unlisted);
+    Ok(Checked { after, notes })
 }
 
 /// A private folder for one copy's files until they are checked; removed when dropped, with the
@@ -346,16 +345,16 @@ impl Stage {
     /// its place was claimed for its bytes (by the writer, else here), and a place that already
     /// holds the same bytes (the same library another copy brought, the source's own file) is
     /// left alone, while a place holding anything else fails the commit. The copy replaces only
-    /// the copy meshvet put at its place before, unchanged ([`ledger`]), and is listed there once
-    /// in place. If a move fails, the side files this call moved in are removed again, unless
-    /// another copy claims or names them.
+    /// the copy meshvet put at its place before, unchanged ([`ledger`]), and is listed there as
+    /// it is moved in (`Some` says why it could not be listed). If a move fails, the side files this
+    /// call moved in are removed again, unless another copy claims or names them.
     fn commit(
         &mut self,
         files: &[PathBuf],
         root: &Path,
         folder: &Path,
         claims: &Claims,
-    ) -> Result<(), String> {
+    ) -> Result<Option<String>, String> {
         let places: Vec<(PathBuf, PathBuf)> = files
             .iter()
             .map(|f| {
@@ -385,6 +384,11 @@ impl Stage {
                 claims.undo(m);
             }
         };
+        // Listed just before it is moved in, so another scan never finds it in place unlisted; a
+        // line for a copy whose move then fails names bytes that are not there, which only
+        // refuses that place. A ledger that cannot be written costs the next scan's replacement
+        // of the copy.
+        let mut unlisted = None;
         let order = (1..places.len()).chain(0..places.len().min(1));
         for i in order {
             let (from, to) = &places[i];
@@ -395,6 +399,7 @@ impl Stage {
             let result = if side {
                 place_side(from, to, claims)
             } else {
+                unlisted = ledger::record(root, place, digest).err();
                 to.parent()
                     .map_or(Ok(()), std::fs::create_dir_all)
                     .and_then(|()| std::fs::rename(from, to))
@@ -412,10 +417,14 @@ impl Stage {
                 }
             }
         }
-        ledger::record(root, place, digest);
         claims.committed();
         self.committed = true;
-        Ok(())
+        Ok(unlisted.map(|why| {
+            format!(
+                "the copy is in place, but {why}, so the next repair will not replace it - \
+                 make the list writable (or remove it and the copies it would list)"
+            )
+        }))
     }
 }
 
