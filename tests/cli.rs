@@ -1208,6 +1208,36 @@ fn two_scans_into_one_repair_folder_keep_each_others_copies() {
     }
 }
 
+/// With `--shard`, each shard counts only its own files in the note on the repair folder: the
+/// shards' counts add up to the folder's files (each shard said the whole tree's count).
+#[test]
+fn each_shard_counts_its_own_files_in_the_repair_folder() {
+    let files: Vec<(String, &str)> = (0..12)
+        .map(|i| (format!("in/fixed/theirs{i}.obj"), TETRA))
+        .chain([("in/a.obj".to_owned(), TETRA)])
+        .collect();
+    let tree = Tree::new(
+        &files
+            .iter()
+            .map(|(p, t)| (p.as_str(), *t))
+            .collect::<Vec<_>>(),
+    );
+    let mut total = 0;
+    for shard in ["1/2", "2/2"] {
+        let run = meshvet(
+            tree.path(),
+            &["scan", "in", "--repair-dir", "in/fixed", "--shard", shard],
+        );
+        total += run
+            .stderr
+            .split("not scanned: ")
+            .nth(1)
+            .and_then(|rest| rest.split(' ').next())
+            .map_or(0, |n| n.parse::<usize>().unwrap());
+    }
+    assert_eq!(total, 12);
+}
+
 /// A repair folder named by an existing file is refused with what to do, before anything is
 /// scanned or written (before: "cannot create the repair folder ref.csv: File exists").
 #[test]
