@@ -1017,6 +1017,31 @@ fn check_gltf_copy(source: &Path, copy: &Path) {
     );
 }
 
+/// A glTF whose name leaves no room for its copy's `NAME.repaired.bin` beside it: the repair
+/// fails saying the name is too long (it said the names were taken by other files).
+#[test]
+fn a_gltf_named_too_long_for_its_buffer_says_so() {
+    let (_dir, src, out) = dirs();
+    let (mut doc, bin) = gltf_asset();
+    std::fs::write(src.join("box.bin"), &bin).unwrap();
+    std::fs::write(src.join("tex/wood.png"), b"png").unwrap();
+    doc["buffers"][0]["uri"] = json!("box.bin");
+    let name = format!("{}.gltf", "b".repeat(245));
+    std::fs::write(src.join(&name), serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    let meshes = read(&src.join(&name), Format::Gltf, &cx(&src)).unwrap();
+    let plans = gltf_plans(&meshes);
+    let e = write_repaired(
+        &src.join(&name),
+        Format::Gltf,
+        &plans,
+        &out.join("models").join(&name),
+        &cx(&src),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("too long a name"), "{e}");
+}
+
 #[test]
 fn gltf_keeps_the_document_and_every_attribute() {
     let (_dir, src, out) = dirs();

@@ -26,6 +26,9 @@ use rustc_hash::FxHashMap;
 
 use super::WriteError;
 
+/// The longest file name most file systems take, in bytes.
+const MAX_NAME: usize = 255;
+
 /// How many numbered names [`Claims::side`] tries.
 const NUMBERED: u32 = 999;
 
@@ -137,6 +140,13 @@ impl Claims {
 
     /// The error of a side file `file` that [`Claims::side`] found no name for.
     pub fn no_free_name(&self, file: &str) -> WriteError {
+        // A name (with room for `-N`) longer than file systems take is no name at all.
+        if file.len() + 4 > MAX_NAME {
+            return WriteError::new(format!(
+                "{file} is too long a name for a file beside the copy (file systems take \
+                 {MAX_NAME} bytes) - give the source a shorter name"
+            ));
+        }
         WriteError::new(format!(
             "no free name for {file} in {}: that name and its numbered variants are taken by \
              other files (or the folder cannot be read) - repair into an empty folder",
