@@ -241,12 +241,13 @@ pub fn lists(folder: &Path, place: &Path) -> bool {
     book_of(&mut books(), folder).places.contains_key(&key)
 }
 
-/// `Ok` when a copy may be put at `place` in the repair folder `folder`: nothing is there, or
-/// the copy meshvet put there last, unchanged. Else what is in the way and what to do.
-pub fn may_replace(folder: &Path, place: &Path) -> Result<(), String> {
+/// `Ok` when a copy may be put at `place` in the repair folder `folder`: nothing is there
+/// (`None`), or the copy meshvet put there last, unchanged (its hash). Else what is in the way
+/// and what to do.
+pub fn may_replace(folder: &Path, place: &Path) -> Result<Option<blake3::Hash>, String> {
     let meta = match std::fs::symlink_metadata(place) {
         Ok(meta) => meta,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(format!("cannot look at {}: {e}", place.display())),
     };
     let advice = "move it away, or repair into another folder";
@@ -273,7 +274,7 @@ pub fn may_replace(folder: &Path, place: &Path) -> Result<(), String> {
         book.places.extend(read(folder).places);
     }
     match book.places.get(&key) {
-        Some(listed) if *listed == now => Ok(()),
+        Some(listed) if *listed == now => Ok(Some(now)),
         Some(_) => Err(format!(
             "{} is not the copy meshvet put there last (it has changed since) - {advice}",
             place.display()

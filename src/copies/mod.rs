@@ -233,7 +233,8 @@ const UNTOUCHED: &str = " - no copy written, the source is untouched";
 struct Checked {
     /// Per mesh with a plan: the copy's status and findings.
     after: Vec<Option<(Status, Vec<Finding>)>>,
-    /// The writer's notes (what the copy could not keep).
+    /// The writer's notes (what the copy could not keep), and why the copy could not be listed
+    /// in the repair folder's ledger.
     notes: Vec<String>,
 }
 
@@ -373,7 +374,7 @@ impl Stage {
                 "the writer wrote no copy (internal error: please report this file)".into(),
             );
         };
-        ledger::may_replace(root, place)?;
+        let earlier = ledger::may_replace(root, place)?;
         let mut hasher = blake3::Hasher::new();
         let digest = std::fs::File::open(staged)
             .and_then(|f| hasher.update_reader(f).map(|h| h.finalize()))
@@ -384,10 +385,9 @@ impl Stage {
                 claims.undo(m);
             }
         };
-        // Listed just before it is moved in, so another scan never finds it in place unlisted; a
-        // line for a copy whose move then fails names bytes that are not there, which only
-        // refuses that place. A ledger that cannot be written costs the next scan's replacement
-        // of the copy.
+        // Listed just before it is moved in, so another scan never finds it in place unlisted;
+        // if the move then fails, the earlier copy still there is listed again. A ledger that
+        // cannot be written costs the next scan's replacement of the copy.
         let mut unlisted = None;
         let order = (1..places.len()).chain(0..places.len().min(1));
         for i in order {
@@ -413,6 +413,11 @@ impl Stage {
                 Ok(false) => {}
                 Err(e) => {
                     undo(&moved);
+                    if !side {
+                        if let Some(earlier) = earlier {
+                            let _ = ledger::record(root, place, earlier);
+                        }
+                    }
                     return Err(e);
                 }
             }
