@@ -108,6 +108,27 @@ impl Drop for AtomicFile {
     }
 }
 
+/// Opens one of meshvet's own files (a cache pack or lock, a repair folder's ledger) with
+/// `options`, only if it is a regular file: a link at its name is not followed (it may lead
+/// anywhere), a FIFO is not waited on, and what was opened is checked again (the name may have
+/// been replaced since it was looked at). A missing file is created when `options` say so.
+pub fn open_own(path: &Path, options: &mut std::fs::OpenOptions) -> io::Result<File> {
+    let not_regular = || io::Error::other("not a regular file");
+    if std::fs::symlink_metadata(path).is_ok_and(|m| !m.is_file()) {
+        return Err(not_regular());
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK);
+    }
+    let file = options.open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(not_regular());
+    }
+    Ok(file)
+}
+
 /// The number of the next temporary name (see [`create_temporary`]).
 static NEXT: AtomicU64 = AtomicU64::new(0);
 

@@ -1176,15 +1176,10 @@ fn the_repair_folder_is_never_scanned_and_never_holds_the_sources() {
 /// the list of copies once, and refused copies the other had put in place since).
 #[test]
 fn two_scans_into_one_repair_folder_keep_each_others_copies() {
-    let files: Vec<(String, &str)> = (0..40)
-        .map(|i| (format!("in/d{i}/inside_out.obj"), INSIDE_OUT))
-        .collect();
-    let tree = Tree::new(
-        &files
-            .iter()
-            .map(|(p, t)| (p.as_str(), *t))
-            .collect::<Vec<_>>(),
-    );
+    let tree = Tree::new(&[]);
+    for i in 0..40 {
+        tree.write(format!("in/d{i}/inside_out.obj"), INSIDE_OUT.as_bytes());
+    }
     let spawn = |csv: &str| {
         Command::new(env!("CARGO_BIN_EXE_meshvet"))
             .args(["scan", "in", "--repair-dir", "fixed", "-q", "--csv", csv])
@@ -1212,16 +1207,10 @@ fn two_scans_into_one_repair_folder_keep_each_others_copies() {
 /// shards' counts add up to the folder's files (each shard said the whole tree's count).
 #[test]
 fn each_shard_counts_its_own_files_in_the_repair_folder() {
-    let files: Vec<(String, &str)> = (0..12)
-        .map(|i| (format!("in/fixed/theirs{i}.obj"), TETRA))
-        .chain([("in/a.obj".to_owned(), TETRA)])
-        .collect();
-    let tree = Tree::new(
-        &files
-            .iter()
-            .map(|(p, t)| (p.as_str(), *t))
-            .collect::<Vec<_>>(),
-    );
+    let tree = Tree::new(&[("in/a.obj", TETRA)]);
+    for i in 0..12 {
+        tree.write(format!("in/fixed/theirs{i}.obj"), TETRA.as_bytes());
+    }
     let mut total = 0;
     for shard in ["1/2", "2/2"] {
         let run = meshvet(

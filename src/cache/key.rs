@@ -15,15 +15,12 @@ pub(super) fn field(hasher: &mut blake3::Hasher, bytes: &[u8]) {
 /// The bytes of the regular file at `path` (a FIFO or device put there since its path was looked
 /// at is refused, not waited on), at most `limit` of them: a file that grew past it is an error.
 pub(super) fn read_at_most(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
-    use std::io::Read as _;
-    let mut bytes = Vec::new();
-    crate::formats::open_regular(path)?
-        .take(limit.saturating_add(1))
-        .read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limit {
-        return Err(std::io::Error::other("over the size limit"));
-    }
-    Ok(bytes)
+    crate::formats::read_within(crate::formats::open_regular(path)?, 0, limit).map_err(|e| match e
+        .kind()
+    {
+        std::io::ErrorKind::FileTooLarge => std::io::Error::other("over the size limit"),
+        _ => e,
+    })
 }
 
 /// Hashes a dependency's bytes, or what it is when it cannot be read as a regular file.

@@ -153,21 +153,19 @@ impl Cache {
     /// shared lock (waiting while another run compacts) and reads every pack's frames.
     pub fn open(dir: &Path, settings: &Settings) -> io::Result<Cache> {
         std::fs::create_dir_all(dir)?;
-        let mut options = File::options();
-        options.read(true).write(true).create(true).truncate(false);
         // A link named `lock` is not followed (it may lead anywhere: the open would create or
         // lock a file outside the folder), nor a FIFO waited on; without a lock the cache still
         // works, it only never compacts.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::OpenOptionsExt;
-            options.custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK);
-        }
-        let lock = options
-            .open(dir.join("lock"))
-            .ok()
-            .filter(|lock| lock.metadata().is_ok_and(|m| m.is_file()))
-            .filter(|lock| lock.lock_shared().is_ok());
+        let lock = crate::atomic::open_own(
+            &dir.join("lock"),
+            File::options()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false),
+        )
+        .ok()
+        .filter(|lock| lock.lock_shared().is_ok());
         let (packs, index, found) = load(dir)?;
         static SERIAL: AtomicU64 = AtomicU64::new(0);
         Ok(Cache {

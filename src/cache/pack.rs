@@ -126,24 +126,8 @@ impl Pack {
     /// name may have been replaced in between; on unix the open itself neither follows a link nor
     /// waits for a FIFO's writer).
     pub(super) fn open(path: &Path) -> io::Result<Pack> {
-        if !std::fs::symlink_metadata(path)?.is_file() {
-            return Err(io::Error::other("not a regular file"));
-        }
-        #[cfg(unix)]
-        let file = {
-            use std::os::unix::fs::OpenOptionsExt;
-            File::options()
-                .read(true)
-                .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK)
-                .open(path)?
-        };
-        #[cfg(not(unix))]
-        let file = File::open(path)?;
-        let meta = file.metadata()?;
-        if !meta.is_file() {
-            return Err(io::Error::other("not a regular file"));
-        }
-        let len = meta.len();
+        let file = crate::atomic::open_own(path, File::options().read(true))?;
+        let len = file.metadata()?.len();
         #[cfg(not(unix))]
         let file = Mutex::new(file);
         Ok(Pack { file, len })

@@ -27,7 +27,7 @@ use std::sync::{Mutex, MutexGuard};
 
 use rustc_hash::FxHashMap;
 
-use crate::atomic::AtomicFile;
+use crate::atomic::{open_own, AtomicFile};
 
 /// The ledger's name in the repair folder.
 pub const LEDGER: &str = ".meshvet-copies";
@@ -106,21 +106,15 @@ fn line(place: &[u8], digest: &blake3::Hash) -> String {
     format!("\n{} {}", digest.to_hex(), hex(place))
 }
 
-/// Opens the ledger at `path` without following a link at its name (a link there could lead
-/// anywhere) nor waiting on a FIFO; `None` unless a regular file is opened.
+/// Opens the ledger at `path` ([`open_own`]: no link followed, no FIFO waited on), for appending
+/// (created if missing) when `create`; `None` unless a regular file is opened.
 fn open(path: &Path, create: bool) -> Option<File> {
     let mut options = File::options();
     options.read(true);
     if create {
         options.append(true).create(true);
     }
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::OpenOptionsExt;
-        options.custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK);
-    }
-    let file = options.open(path).ok()?;
-    file.metadata().ok()?.is_file().then_some(file)
+    open_own(path, &mut options).ok()
 }
 
 /// The places `bytes` (a ledger's content) lists, and how many lines it has for them; empty
@@ -233,6 +227,13 @@ fn append(path: &Path, text: &str) -> Result<(), String> {
     Err(cannot("it keeps being replaced"))
 }
 
+/// The hash a ledger line gives the regular file at `path`.
+pub fn digest(path: &Path) -> std::io::Result<blake3::Hash> {
+    let mut hasher = blake3::Hasher::new();
+    hasher.update_reader(crate::formats::open_regular(path)?)?;
+    Ok(hasher.finalize())
+}
+
 /// Whether the ledger of `folder` lists `place` (whatever it holds now).
 pub fn lists(folder: &Path, place: &Path) -> bool {
     let Some(key) = key(folder, place) else {
@@ -263,10 +264,7 @@ pub fn may_replace(folder: &Path, place: &Path) -> Result<Option<blake3::Hash>, 
             place.display()
         ));
     };
-    let mut hasher = blake3::Hasher::new();
-    let now = crate::formats::open_regular(place)
-        .and_then(|f| hasher.update_reader(f).map(|h| h.finalize()))
-        .map_err(|e| format!("cannot read {}: {e}", place.display()))?;
+    let now = digest(place).map_err(|e| format!("cannot read {}: {e}", place.display()))?;
     let mut books = books();
     let book = book_of(&mut books, folder);
     if book.places.get(&key) != Some(&now) {

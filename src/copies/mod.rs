@@ -375,9 +375,7 @@ impl Stage {
             );
         };
         let earlier = ledger::may_replace(root, place)?;
-        let mut hasher = blake3::Hasher::new();
-        let digest = std::fs::File::open(staged)
-            .and_then(|f| hasher.update_reader(f).map(|h| h.finalize()))
+        let digest = ledger::digest(staged)
             .map_err(|e| format!("cannot read the staged copy {}: {e}", staged.display()))?;
         let mut moved: Vec<PathBuf> = Vec::new();
         let undo = |moved: &[PathBuf]| {

@@ -39,7 +39,7 @@ pub(crate) struct Entry {
     pub name: &'static str,
     /// File name extensions, lower case, without the dot (matched in any case).
     pub extensions: &'static [&'static str],
-    /// Reads every mesh of a file (after [`check_file`]).
+    /// Reads every mesh of a file (opened with [`open_file`]).
     pub read: Reader,
     /// A read that also keeps what the writer of a repaired copy needs, where reading the file
     /// again would cost a second parse; `None`: the writer reads the source itself.
@@ -235,7 +235,6 @@ impl From<std::io::Error> for ReadError {
 /// Reads every mesh of a file. A file with no triangles gives meshes with no triangles (or none at all),
 /// not an error.
 pub fn read(path: &Path, format: Format, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
-    check_file(path, &cx.limits)?;
     (format.entry().read)(path, cx).map(fitted)
 }
 
@@ -305,7 +304,6 @@ pub fn read_retaining(
 ) -> Result<(Vec<Mesh>, Option<Retained>), ReadError> {
     match format.entry().read_retaining {
         Some(read_retaining) => {
-            check_file(path, &cx.limits)?;
             let (meshes, kept) = read_retaining(path, cx)?;
             Ok((fitted(meshes), Some(kept)))
         }
@@ -370,24 +368,9 @@ pub fn not_regular_message(kind: &str) -> String {
     )
 }
 
-/// Refuses, before anything is opened, a path that is not a regular file or is over the size
-/// limit. (Symbolic links are followed: a link to a regular file is read.)
-pub(crate) fn check_file(path: &Path, limits: &Limits) -> Result<u64, ReadError> {
-    let meta = std::fs::metadata(path)?;
-    if let Some(kind) = not_regular(&meta) {
-        return Err(ReadError::new(not_regular_message(kind)));
-    }
-    let size = meta.len();
-    if size > limits.max_file_bytes {
-        return Err(over_limit(size, limits));
-    }
-    Ok(size)
-}
-
-/// Opens `path` for reading if what is opened is a regular file: checked on the opened file
-/// itself, so a file replaced by a FIFO or a device after its path was looked at is refused, not
-/// waited on (on unix the open itself does not wait for a FIFO's writer).
-pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+/// Opens `path` for reading without waiting: on unix the open itself does not wait for a
+/// FIFO's writer. What was opened is then checked by the callers.
+fn open_unblocked(path: &Path) -> std::io::Result<std::fs::File> {
     let mut options = std::fs::File::options();
     options.read(true);
     #[cfg(unix)]
@@ -395,7 +378,14 @@ pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
         use std::os::unix::fs::OpenOptionsExt;
         options.custom_flags(libc::O_NONBLOCK);
     }
-    let file = options.open(path)?;
+    options.open(path)
+}
+
+/// Opens `path` for reading if what is opened is a regular file: checked on the opened file
+/// itself, so a file replaced by a FIFO or a device after its path was looked at is refused, not
+/// waited on.
+pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    let file = open_unblocked(path)?;
     match not_regular(&file.metadata()?) {
         None => Ok(file),
         Some(kind) => Err(std::io::Error::other(not_regular_message(kind))),
@@ -411,11 +401,17 @@ pub fn read_regular(path: &Path) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// [`open_regular`], and within the size limit: what [`check_file`] said of the path, said again
-/// of the file opened (a larger file may have replaced it).
+/// Opens a mesh file for a reader: refuses what is opened unless it is a regular file (a FIFO or
+/// a device would block or never end; a link to a regular file is read) within the size limit,
+/// checked on the opened file itself, so a file replaced after the walk looked at its path is
+/// refused, not waited on or read past the limit. Returns the file and its size.
 pub(crate) fn open_file(path: &Path, limits: &Limits) -> Result<(std::fs::File, u64), ReadError> {
-    let file = open_regular(path)?;
-    let size = file.metadata()?.len();
+    let file = open_unblocked(path)?;
+    let meta = file.metadata()?;
+    if let Some(kind) = not_regular(&meta) {
+        return Err(ReadError::new(not_regular_message(kind)));
+    }
+    let size = meta.len();
     if size > limits.max_file_bytes {
         return Err(over_limit(size, limits));
     }
@@ -425,13 +421,22 @@ pub(crate) fn open_file(path: &Path, limits: &Limits) -> Result<(std::fs::File, 
 /// The bytes of the file at `path` ([`open_file`]); never more than the size limit, even from a
 /// file that grows while it is read.
 pub(crate) fn read_bytes(path: &Path, limits: &Limits) -> Result<Vec<u8>, ReadError> {
-    use std::io::Read as _;
     let (file, size) = open_file(path, limits)?;
-    let mut bytes = Vec::with_capacity(size as usize);
-    file.take(limits.max_file_bytes.saturating_add(1))
-        .read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limits.max_file_bytes {
-        return Err(over_limit(bytes.len() as u64, limits));
+    read_within(file, size, limits.max_file_bytes).map_err(|e| match e.kind() {
+        std::io::ErrorKind::FileTooLarge => over_limit(limits.max_file_bytes + 1, limits),
+        _ => e.into(),
+    })
+}
+
+/// Reads `file` to its end (`size`: its size when opened), at most `limit` bytes: a file that
+/// has grown past the limit meanwhile is an error of kind `FileTooLarge`, after `limit + 1`
+/// bytes.
+pub(crate) fn read_within(file: std::fs::File, size: u64, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::with_capacity(size.min(limit) as usize);
+    file.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(std::io::ErrorKind::FileTooLarge.into());
     }
     Ok(bytes)
 }
@@ -447,7 +452,7 @@ fn over_limit(size: u64, limits: &Limits) -> ReadError {
 mod tests {
     use super::*;
 
-    /// A file replaced by a FIFO after [`check_file`] looked at its path: every reader refuses
+    /// A file replaced by a FIFO after the walk looked at its path: every reader refuses
     /// what it opened instead of waiting for a writer that never comes (before, the scan hung
     /// there for good). Each reader is called directly, as after the swap.
     #[cfg(unix)]

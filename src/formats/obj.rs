@@ -18,7 +18,6 @@
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashSet};
-use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use super::contain::{self, Location, Unresolved};
@@ -269,7 +268,6 @@ pub(crate) struct State {
 
 /// Reads the file's one mesh with the [`Detail`] a writer needs (no `.mtl` is looked at).
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
-    super::check_file(path, &cx.limits)?;
     let bytes = super::read_bytes(path, &cx.limits)?;
     let parsed = parse_with(&bytes, cx, Some(Box::default()))?;
     let mut detail = parsed.detail.unwrap_or_default();
@@ -974,14 +972,11 @@ fn check_mtl(
     }
     // At most the size limit is read, even if the file grows meanwhile.
     let limit = limits.max_file_bytes;
-    let mut bytes = Vec::new();
-    let read = super::open_regular(&path)
-        .and_then(|f| f.take(limit.saturating_add(1)).read_to_end(&mut bytes));
-    match read {
-        Ok(_) if bytes.len() as u64 > limit => not_read(format!(
+    match super::open_regular(&path).and_then(|f| super::read_within(f, 0, limit)) {
+        Err(e) if e.kind() == std::io::ErrorKind::FileTooLarge => not_read(format!(
             "it is over the limit of {limit} bytes (limits.max_file_bytes)"
         )),
-        Ok(_) => check_mtl_bytes(name, &bytes),
+        Ok(bytes) => check_mtl_bytes(name, &bytes),
         Err(e) => Some(format!(
             "material library `{name}` (line {line}) could not be read: {e}"
         )),

@@ -82,7 +82,6 @@ pub(crate) struct Detail {
 
 /// Reads the file's one mesh with the [`Detail`] a writer needs.
 pub(crate) fn read_full(path: &Path, cx: &ReadContext) -> Result<(Mesh, Detail), ReadError> {
-    super::check_file(path, &cx.limits)?;
     let bytes = super::read_bytes(path, &cx.limits)?;
     let mut detail = Detail::default();
     let mesh = parse_with(&bytes, cx, Some(&mut detail))?;
