@@ -124,6 +124,7 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
     let given_root: Option<Arc<Path>> = root.map(Into::into);
     let current: Arc<Path> = Path::new(".").into();
     let current_real = Path::new(".").canonicalize().ok();
+    let given_root_real = given_root.as_deref().map(real);
     let mut sources = Vec::new();
     // The real paths listed so far: only several PATHs can reach one file twice.
     let mut seen = Seen {
@@ -138,8 +139,8 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
         if given.is_dir() {
             // Inside the current folder (or `--root`), a folder named in a folder the exclude
             // globs name is left out as the walk of `.` leaves it out.
-            let around = given_root.as_deref().map(real).or(current_real.clone());
-            if in_excluded_folder(filter, given, around.as_deref()) {
+            let around = given_root_real.as_deref().or(current_real.as_deref());
+            if in_excluded_folder(filter, given, around) {
                 continue;
             }
             let tree = given_root.clone().unwrap_or_else(|| given.as_path().into());
@@ -173,7 +174,13 @@ pub fn walk_within(paths: &[PathBuf], filter: &Filter, root: Option<&Path>) -> V
             // A folder the exclude globs name is left out with every file in it, as the walk
             // leaves it out (`vendor` keeps `vendor/deep/part.obj` out), counting the folders of
             // the file's tree only.
-            if in_excluded_folder(filter, folder, Some(&real(&root)))
+            // The tree's real path: known already but for a file's own folder.
+            let tree_real = match (&given_root_real, inside_current) {
+                (Some(r), _) => Some(r.clone()),
+                (None, true) => current_real.clone(),
+                (None, false) => Some(real(&root)),
+            };
+            if in_excluded_folder(filter, folder, tree_real.as_deref())
                 || !filter.admits(&[&name, &display])
             {
                 continue;
