@@ -12,7 +12,8 @@
 //! 3. orient every orientable component consistently, flipping the fewer faces;
 //! 4. fill holes of at most `max_hole_edges` edges (ear clipping in the loop's best-fit plane, a fan
 //!    only for a loop convex in that plane; a loop that crosses itself in that plane, one where
-//!    ear clipping finds no ear, and a concave one over 1,024 edges are left open),
+//!    ear clipping finds no ear, and a concave one over 1,024 edges are left open, as is one
+//!    through a corner of a face with an invalid vertex that step 1 kept),
 //!    new faces wound like their neighbours, their corners carrying the attributes of the border
 //!    corners;
 //! 5. flip closed shells whose volume sign is wrong for their nesting depth (after the fills, so a
@@ -275,6 +276,15 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
                 fill.too_large,
                 plural(fill.too_large),
                 options.max_hole_edges
+            ));
+        }
+        let n = fill.invalid;
+        if n > 0 {
+            not_repairable.push(format!(
+                "{n} hole{} left open: faces with a NaN or infinite vertex close {} in the file \
+                 (kept, as invalid-vertex is off)",
+                plural(n),
+                if n == 1 { "it" } else { "them" }
             ));
         }
         for (n, why) in [
@@ -1070,6 +1080,17 @@ impl<'a> Work<'a> {
             }
             None
         };
+        // Faces with an invalid vertex that the repair keeps (`invalid-vertex` off) are not in the
+        // table, but the file still closes the holes they leave: their other corners.
+        let mut at_kept_invalid = vec![false; table.vertex_count()];
+        for t in &self.triangles {
+            let w = self.welded_of(t);
+            if FaceKind::of(&w) == FaceKind::Invalid {
+                for v in w.into_iter().filter(|&v| v != INVALID) {
+                    at_kept_invalid[v as usize] = true;
+                }
+            }
+        }
         let mut traced = vec![false; table.corner_count()];
         let mut new_triangles = Vec::new();
         let mut filled: Vec<Filled> = Vec::new();
@@ -1098,6 +1119,13 @@ impl<'a> Work<'a> {
             }
             // A loop through a pinch twice (two holes meeting corner to corner) is two holes.
             for loop_corners in simple_loops(table, traced_loop) {
+                if loop_corners
+                    .iter()
+                    .any(|&c| at_kept_invalid[table.v(CornerTable::n(c)) as usize])
+                {
+                    fill.invalid += 1;
+                    continue;
+                }
                 if loop_corners.len() > max_edges {
                     fill.too_large += 1;
                     continue;
@@ -1448,6 +1476,8 @@ struct Fill {
     flat: usize,
     /// Loops whose fill would cross the rest of the surface (or another fill).
     crossing: usize,
+    /// Loops through a corner of a face with an invalid vertex that the repair keeps.
+    invalid: usize,
 }
 
 /// Six times the signed volume of a set of triangles (about an origin) and their bounding box.

@@ -85,6 +85,57 @@ fn open_box_with_a_flipped_face_becomes_a_closed_outward_cube() {
     }
 }
 
+/// A cube whose top square is four faces around a NaN vertex, repaired with `invalid-vertex` off
+/// (faces with invalid vertices kept): the analysis leaves those four faces out, so it sees one
+/// hole of 4 edges, but the file closes it. Filling it would lay 2 faces over the 4 kept ones:
+/// the hole is left open and said so, and the copy is the source's 14 faces.
+#[test]
+fn holes_closed_by_kept_invalid_faces_are_not_filled() {
+    let cube = shapes::cube();
+    let top = top_faces(&cube);
+    let mut mesh = cube.clone();
+    mesh.triangles = (0..12)
+        .filter(|t| !top.contains(t))
+        .map(|t| cube.triangles[t])
+        .collect();
+    let nan = mesh.positions.len() as u32;
+    mesh.positions.push([f64::NAN, 0.5, 1.0]);
+    // The top square's corners in turn, counter-clockwise seen from above.
+    let ring = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]].map(|[x, y]| {
+        mesh.positions
+            .iter()
+            .position(|p| *p == [x, y, 1.0])
+            .unwrap() as u32
+    });
+    for k in 0..4 {
+        mesh.triangles.push([ring[k], ring[(k + 1) % 4], nan]);
+    }
+    let options = Options {
+        drop_invalid_faces: false,
+        ..Options::default()
+    };
+    let p = plan(&mesh, &options);
+    assert_eq!(count(&p, Kind::FillHoles), 0);
+    assert_eq!(
+        p.not_repairable,
+        vec![
+            "1 hole left open: faces with a NaN or infinite vertex close it in the file (kept, \
+             as invalid-vertex is off)"
+        ]
+    );
+    assert_eq!(p.apply(&mesh).triangles.len(), 14);
+    // With the faces dropped, the hole is the cube's top: filled with 2 faces.
+    let p = plan(&mesh, &Options::default());
+    assert_eq!(
+        (
+            count(&p, Kind::DropInvalidFaces),
+            count(&p, Kind::FillHoles)
+        ),
+        (4, 1)
+    );
+    assert_eq!(p.apply(&mesh).triangles.len(), 12);
+}
+
 /// The two faces of the cube with all four vertices at z = 1.
 fn top_faces(cube: &Mesh) -> Vec<usize> {
     (0..12)
