@@ -157,11 +157,34 @@ impl Scan {
     }
 }
 
-/// A report path: `-` is standard output.
+/// A report path: `-` is standard output, and so is a path to the file standard output already
+/// is (`/dev/stdout`, `/proc/self/fd/1`, or the file the shell sent it to): written into that
+/// open file, with the summary on standard error, not renamed over the name.
 pub fn target(path: &std::path::Path) -> Target {
-    if path.as_os_str() == "-" {
+    if path.as_os_str() == "-" || is_standard_output(path) {
         Target::Stdout
     } else {
         Target::File(path.to_owned())
+    }
+}
+
+/// Whether `path` (its links followed) is the file standard output writes to.
+fn is_standard_output(path: &std::path::Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        use std::os::unix::fs::MetadataExt;
+        let Ok(out) = std::io::stdout().as_fd().try_clone_to_owned() else {
+            return false;
+        };
+        match (std::fs::File::from(out).metadata(), std::fs::metadata(path)) {
+            (Ok(a), Ok(b)) => (a.dev(), a.ino()) == (b.dev(), b.ino()),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        false
     }
 }

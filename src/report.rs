@@ -11,7 +11,7 @@
 //! the only cell that differs between two scans of the same tree.
 
 use std::io::{self, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::atomic::AtomicFile;
 use crate::formats::Format;
@@ -424,6 +424,26 @@ pub enum Target {
     File(PathBuf),
 }
 
+/// The file a report path names: links are followed to the name they lead to (which need not
+/// exist yet), so the report replaces that file and the links stay (renaming over a link's own
+/// name would put a regular file in its place).
+fn through_links(path: &Path) -> io::Result<PathBuf> {
+    let mut path = path.to_owned();
+    // As many links as the system follows in one path.
+    for _ in 0..40 {
+        if !std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_symlink()) {
+            return Ok(path);
+        }
+        let to = std::fs::read_link(&path)?;
+        path = path
+            .parent()
+            .map_or_else(|| to.clone(), |folder| folder.join(&to));
+    }
+    Err(io::Error::other(
+        "it is a link in a loop of links: name the file itself",
+    ))
+}
+
 /// An open report destination: standard output, or a file put in place atomically by
 /// [`Output::finish`] (see [`crate::atomic`]). Dropped unfinished, a file target is left untouched.
 pub enum Output {
@@ -435,7 +455,17 @@ impl Output {
     pub fn create(target: &Target) -> io::Result<Output> {
         Ok(match target {
             Target::Stdout => Output::Stdout(io::BufWriter::new(io::stdout())),
-            Target::File(path) => Output::File(AtomicFile::create(path)?),
+            Target::File(path) => {
+                let real = through_links(path)?;
+                Output::File(AtomicFile::create(&real).map_err(|e| {
+                    if real == *path {
+                        e
+                    } else {
+                        let to = real.display();
+                        io::Error::new(e.kind(), format!("{e} (it is a link to {to})"))
+                    }
+                })?)
+            }
         })
     }
 

@@ -476,6 +476,63 @@ fn a_report_never_replaces_the_file_behind_a_named_link() {
     assert_eq!(mesh, TETRA);
 }
 
+/// A report named by a link writes the file the link leads to and keeps the link: the rename
+/// went over the link's own name, so a regular file took its place (run as root with standard
+/// output sent to a file, `--csv /dev/stdout` replaced the system's `/dev/stdout`). A name for
+/// standard output itself writes into it, the summary going to standard error as with `-`; a
+/// link that leads nowhere is refused.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_report_named_by_a_link_writes_through_it() {
+    use std::os::unix::fs::symlink;
+    let tree = Tree::new(&[("m/a.obj", TETRA), ("s.csv", "")]);
+    let dir = tree.path();
+    let is_link = |name: &str| {
+        std::fs::symlink_metadata(dir.join(name))
+            .unwrap()
+            .is_symlink()
+    };
+    symlink("real.csv", dir.join("link.csv")).unwrap();
+    let run = meshvet(dir, &["scan", "m", "--csv", "link.csv", "-q"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert!(is_link("link.csv"));
+    let real = std::fs::read_to_string(dir.join("real.csv")).unwrap();
+    assert_eq!(rows(&real).len(), 1, "{real}");
+
+    symlink("/proc/self/fd/1", dir.join("stdout-link")).unwrap();
+    let bin = env!("CARGO_BIN_EXE_meshvet");
+    for (k, args) in [
+        ["scan", "m", "--csv", "stdout-link"].as_slice(),
+        &["scan", "m", "--csv", "/dev/stdout"],
+        &["merge", "real.csv", "--csv", "stdout-link"],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let sent = dir.join(format!("sent{k}.csv"));
+        let out = Command::new(bin)
+            .args(args)
+            .current_dir(dir)
+            .stdout(std::fs::File::create(&sent).unwrap())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {stderr}");
+        assert!(is_link("stdout-link"), "{args:?}");
+        let text = std::fs::read_to_string(&sent).unwrap();
+        assert_eq!(rows(&text).len(), 1, "{args:?}: {text}");
+        if args[0] == "scan" {
+            assert!(stderr.contains("1 mesh: 1 pass"), "{args:?}: {stderr}");
+        }
+    }
+
+    symlink("gone/r.csv", dir.join("dangling.csv")).unwrap();
+    let run = meshvet(dir, &["scan", "m", "--csv", "dangling.csv", "-q"]);
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(run.stderr.contains("link"), "{}", run.stderr);
+    assert!(is_link("dangling.csv"));
+}
+
 /// Nor a file a model reads beside it (its material library, a texture) or the config in use:
 /// inside a scanned tree a report may replace only an earlier meshvet report (not another tool's
 /// table that has a `path` column) or an empty file, and nowhere the config. Each refusal exits 2
