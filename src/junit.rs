@@ -11,6 +11,11 @@
 //! - An `error` row (the file could not be read) is an `<error>` with the row's message.
 //! - An `empty` mesh (no triangles) is `<skipped>`: there was nothing to test.
 //!
+//! Names and messages are written with the characters XML 1.0 cannot hold (control characters
+//! but tab and line end, U+FFFE, U+FFFF) and those a reader would change (a line end or tab in
+//! an attribute reads back as a space) as `\x1b`-style escapes, as the terminal shows them: a
+//! name holding one gives a well-formed report and a case named apart from every other.
+//!
 //! Cases are kept in memory until [`JunitReport::finish`] (a few hundred bytes per mesh).
 
 use std::io;
@@ -67,7 +72,7 @@ pub fn case(outcome: &Outcome) -> TestCase {
     } else {
         format!("{}#{}", row.path, row.mesh)
     };
-    let line = |f: &crate::rules::Finding| format!("{}: {}", f.rule, f.message);
+    let line = |f: &crate::rules::Finding| escaped(&format!("{}: {}", f.rule, f.message), false);
     let of = |severity: Severity| -> Vec<String> {
         outcome
             .findings
@@ -88,19 +93,19 @@ pub fn case(outcome: &Outcome) -> TestCase {
         }
         Status::Error => {
             let mut status = TestCaseStatus::non_success(NonSuccessKind::Error);
-            status.set_message(row.message.as_str());
+            status.set_message(escaped(&row.message, false));
             status.set_type("unreadable");
             status
         }
         Status::Empty => {
             let mut status = TestCaseStatus::skipped();
-            status.set_message(row.message.as_str());
+            status.set_message(escaped(&row.message, false));
             status
         }
     };
-    let mut case = TestCase::new(name, status);
+    let mut case = TestCase::new(escaped(&name, false), status);
     let folder = row.path.rsplit_once('/').map_or(".", |(folder, _)| folder);
-    case.set_classname(folder);
+    case.set_classname(escaped(folder, false));
     if let Some(millis) = row.millis.filter(|m| m.is_finite() && *m >= 0.0) {
         case.set_time(Duration::from_secs_f64(millis / 1e3));
     }
@@ -109,4 +114,20 @@ pub fn case(outcome: &Outcome) -> TestCase {
         case.set_system_out(format!("warnings:\n{}", warnings.join("\n")));
     }
     case
+}
+
+/// `text` with the characters XML 1.0 cannot hold, and line ends and tabs unless `lines` (an
+/// attribute's value turns them into spaces), written as `\x0a`-style escapes (see the module
+/// docs).
+fn escaped(text: &str, lines: bool) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '\n' | '\t' if lines => out.push(c),
+            '\u{fffe}' | '\u{ffff}' => out.push_str(&format!("\\u{{{:04x}}}", u32::from(c))),
+            c if c.is_control() => out.push_str(&format!("\\x{:02x}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    out
 }

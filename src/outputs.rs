@@ -281,8 +281,9 @@ pub fn cannot_write(target: &Target, e: &io::Error) -> String {
 /// `line` as the terminal shows it: control characters (a file or mesh name may hold an escape
 /// sequence that recolours or rewrites the terminal, or a line feed that splits one finding's
 /// line in two for a hook reading them) written as `\x1b`-style escapes, and the directional
-/// formatting characters ([`is_bidi`]) as `\u{202e}`-style ones. The CSV, JSON and JUnit
-/// reports keep names as they are (each in its own quoting).
+/// formatting characters ([`is_bidi`]) as `\u{202e}`-style ones. The CSV and JSON reports keep
+/// names as they are (each in its own quoting); JUnit escapes what XML cannot hold
+/// ([`crate::junit`]).
 pub fn printable(line: &str) -> std::borrow::Cow<'_, str> {
     if !line.chars().any(|c| c.is_control() || is_bidi(c)) {
         return line.into();

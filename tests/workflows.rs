@@ -327,6 +327,48 @@ fn json_lines_carry_every_csv_column_findings_and_shells() {
     assert_eq!(garbage["faces"], serde_json::Value::Null);
 }
 
+/// Names holding characters XML 1.0 cannot hold (U+FFFE, U+FFFF, control characters) broke the
+/// whole JUnit report, and those it can but an attribute changes (a line end, a tab) or the
+/// writer dropped (an escape sequence) made cases of different files share a name. Each is now
+/// written as a `\x1b`-style escape, as the terminal shows it.
+#[cfg(unix)]
+#[test]
+fn junit_names_stay_well_formed_and_apart() {
+    let names = [
+        "ab",
+        "a\rb",
+        "a\tb",
+        "a\nb",
+        "\u{fffe}",
+        "\u{ffff}",
+        "c\x1b[31m",
+    ];
+    let files: Vec<(String, &str)> = names.iter().map(|n| (format!("{n}.obj"), TETRA)).collect();
+    let files: Vec<(&str, &str)> = files.iter().map(|(n, t)| (n.as_str(), *t)).collect();
+    let dir = tree(&files);
+    let run = meshvet(dir.path(), &["scan", ".", "--junit", "j.xml", "-q"]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    let xml = read(dir.path(), "j.xml");
+    let doc = roxmltree::Document::parse(&xml).expect("a well-formed report");
+    let mut cases: Vec<&str> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("testcase"))
+        .map(|n| n.attribute("name").unwrap())
+        .collect();
+    cases.sort_unstable();
+    let mut expected = [
+        "ab.obj",
+        "a\\x0db.obj",
+        "a\\x09b.obj",
+        "a\\x0ab.obj",
+        "\\u{fffe}.obj",
+        "\\u{ffff}.obj",
+        "c\\x1b[31m.obj",
+    ];
+    expected.sort_unstable();
+    assert_eq!(cases, expected);
+}
+
 #[test]
 fn junit_has_one_suite_a_case_per_mesh_and_the_right_counts() {
     let dir = scan_tree();
