@@ -1871,3 +1871,31 @@ fn a_part_that_is_not_utf8_is_refused() {
     let meshes = read_ok(&bytes(text.as_bytes()));
     assert_eq!(meshes[0].name.as_deref(), Some(wide.as_str()));
 }
+
+/// A model part may open with a UTF-8 byte order mark (XML allows it, and exporters on Windows
+/// write one). The repair splices its new `<vertices>`/`<triangles>` in at the byte positions
+/// read, so the mark counts: the copy is well formed, closed and turned, and the mark stays.
+#[test]
+fn a_model_part_with_a_byte_order_mark_is_repaired() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, text) = plate();
+    let marked = format!("\u{feff}{text}");
+    let source = dir.path().join("marked.3mf");
+    std::fs::write(&source, package(&marked)).unwrap();
+    let meshes = read(&source, Format::ThreeMf, &cx(dir.path())).unwrap();
+    let plans = plans(&meshes);
+    assert!(plans[0].is_some() && plans[1].is_some() && plans[2].is_none());
+
+    let out = dir.path().join("out/marked.3mf");
+    write_repaired(&source, Format::ThreeMf, &plans, &out, &cx(dir.path())).unwrap();
+    let copy = entries(&std::fs::read(&out).unwrap());
+    let model = &copy.iter().find(|e| e.0 == "3D/3dmodel.model").unwrap().1;
+    assert!(model.starts_with("\u{feff}<?xml".as_bytes()));
+    let again = read(&out, Format::ThreeMf, &cx(out.parent().unwrap())).unwrap();
+    assert_eq!(again.len(), 3);
+    let a = analyse(&again[0], &Options::default());
+    assert_eq!((a.faces, a.border_edges), (12, 0));
+    let b = analyse(&again[1], &Options::default());
+    assert_eq!((b.faces, b.inconsistent_edges), (4, 0));
+    assert_eq!(again[2], meshes[2]);
+}

@@ -59,9 +59,22 @@ struct Capped<R> {
     /// The first bytes the current event took, to say what it is when it is too long.
     head: [u8; 9],
     head_len: usize,
+    /// The part's first bytes (up to 3), to tell whether it opens with a byte order mark.
+    opening: [u8; 3],
+    opening_len: usize,
 }
 
 impl<R: BufRead> Capped<R> {
+    /// The bytes of a byte order mark the part opens with: the XML reader skips it without
+    /// counting it in its position.
+    fn mark_len(&self) -> u64 {
+        if self.opening == [0xef, 0xbb, 0xbf] {
+            3
+        } else {
+            0
+        }
+    }
+
     /// Starts an event.
     fn begin(&mut self) {
         self.left = self.cap;
@@ -119,6 +132,14 @@ impl<R: BufRead> BufRead for Capped<R> {
     }
 
     fn consume(&mut self, n: usize) {
+        if self.opening_len < self.opening.len() {
+            if let Ok(bytes) = self.inner.fill_buf() {
+                let more = n.min(self.opening.len() - self.opening_len).min(bytes.len());
+                self.opening[self.opening_len..self.opening_len + more]
+                    .copy_from_slice(&bytes[..more]);
+                self.opening_len += more;
+            }
+        }
         if self.head_len < self.head.len() {
             // The bytes consumed are in the buffer: this reads nothing.
             if let Ok(bytes) = self.inner.fill_buf() {
@@ -227,6 +248,8 @@ impl<R: BufRead> Xml<R> {
             left: MAX_PIECE,
             head: [0; 9],
             head_len: 0,
+            opening: [0; 3],
+            opening_len: 0,
         });
         let config = reader.config_mut();
         config.check_end_names = true;
@@ -246,7 +269,7 @@ impl<R: BufRead> Xml<R> {
 
     /// Bytes of the part read so far.
     pub fn position(&self) -> u64 {
-        self.reader.buffer_position() + self.taken
+        self.reader.buffer_position() + self.taken + self.reader.get_ref().mark_len()
     }
 
     /// Reads a run of plain empty elements named `name` straight from the source, without the XML
@@ -325,6 +348,10 @@ impl<R: BufRead> Xml<R> {
             Ok(event) => event,
             Err(e) => return Err(self.malformed(&e)),
         };
+        if self.start == 0 {
+            // The first event starts after the byte order mark, if the part has one.
+            self.start = self.reader.get_ref().mark_len();
+        }
         let step = match &event {
             Event::Start(e) | Event::Empty(e) => {
                 if self.depth == 0 {
@@ -607,7 +634,7 @@ impl<R: BufRead> Xml<R> {
         }
         self.error(&format!(
             "is not well-formed XML near byte {} ({e}): the file is damaged - re-export it",
-            self.reader.error_position() + self.taken
+            self.reader.error_position() + self.taken + self.reader.get_ref().mark_len()
         ))
     }
 }
@@ -845,6 +872,21 @@ mod tests {
         let (_, event) = xml.next(&mut buf).unwrap();
         let Event::Empty(e) = event else { panic!() };
         assert_eq!(xml.namespace(&e), Some(&b"urn:p"[..]));
+    }
+
+    /// Positions count from the part's first byte, a byte order mark too: the repair splices
+    /// new mesh elements in at the positions read.
+    #[test]
+    fn positions_count_a_byte_order_mark() {
+        for text in ["<a><b/></a>", "\u{feff}<a><b/></a>"] {
+            let mut xml = Xml::new(text.as_bytes(), "/t.xml");
+            let mut buf = Vec::new();
+            xml.next(&mut buf).unwrap();
+            assert_eq!(xml.start as usize, text.find("<a>").unwrap(), "{text:?}");
+            xml.next(&mut buf).unwrap();
+            assert_eq!(xml.start as usize, text.find("<b/>").unwrap(), "{text:?}");
+            assert_eq!(xml.position() as usize, text.find("</a>").unwrap(), "{text:?}");
+        }
     }
 
     #[test]
