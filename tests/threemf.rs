@@ -446,6 +446,30 @@ fn a_package_without_a_root_model_is_refused() {
     );
 }
 
+/// Two entries with one part name give a package without one meaning (readers differ on which
+/// they take): refused, whether the names are equal or differ in ASCII case only. The ZIP writer
+/// refuses equal names, so the second is renamed in the bytes (name lengths are equal).
+#[test]
+fn two_parts_with_one_name_are_refused() {
+    let (p, t) = tetrahedron();
+    let text = model(&mesh_object(1, "tet", &p, &t), "<item objectid=\"1\"/>");
+    let (cp, ct) = cube(false);
+    let other = model(&mesh_object(1, "cube", &cp, &ct), "<item objectid=\"1\"/>");
+    let bytes = package_with(&text, &[("3D/3dmodel.modeX", other.as_bytes())]);
+    assert_eq!(read_ok(&bytes).len(), 1);
+    let renamed = |to: &[u8]| {
+        let mut b = bytes.clone();
+        let mut at = 0;
+        while let Some(i) = find(&b[at..], b"3D/3dmodel.modeX") {
+            b[at + i..at + i + to.len()].copy_from_slice(to);
+            at += i + 1;
+        }
+        b
+    };
+    refused(&renamed(b"3D/3dmodel.model"), "two parts with the same name");
+    refused(&renamed(b"3D/3DModel.model"), "two parts named");
+}
+
 /// Relationship targets and `p:path` references must name parts of the package: `..` above the
 /// root, absolute `file:` URIs, other schemes, network paths and External targets are refused.
 #[test]

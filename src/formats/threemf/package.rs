@@ -63,6 +63,13 @@ impl Package {
                 "not a 3MF package: the file is not a readable ZIP archive ({e}); a .3mf file is a ZIP of XML parts - re-export it from the modelling program or slicer"
             ))
         })?;
+        if archive.has_duplicate_names() {
+            // The ZIP reader keeps one entry per name: which of the two a reader sees differs
+            // between programs, so the package has no one meaning.
+            return Err(ReadError::new(
+                "the package holds two parts with the same name: the file is damaged - re-export it",
+            ));
+        }
         let mut parts = FxHashMap::default();
         for index in 0..archive.len() {
             let entry = archive.by_index_data(index).map_err(|e| {
