@@ -32,8 +32,9 @@ pub enum Command {
 
     /// Join the CSV reports of `scan --shard K/N` runs into one, sorted by path then mesh.
     ///
-    /// The reports must have the same columns and must not report the same path. Exit code 0:
-    /// merged; 2: a report is missing, malformed, mismatched or overlapping.
+    /// Give the reports of all N shards of one scan: each report's rows must belong to one shard
+    /// of N (the number of reports given), no two reports to the same shard or path. Exit code 0:
+    /// merged; 2: a report is missing, malformed, of another version, or overlapping.
     Merge(Merge),
 
     /// Show which config a scan here would use, or print the documented default config.
@@ -52,7 +53,7 @@ pub struct ConfigArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct Merge {
-    /// The shard reports (CSV files written by `meshvet scan --csv`).
+    /// The shard reports, all N (CSV files written by `meshvet scan --shard K/N --csv`).
     #[arg(required = true, value_name = "REPORT")]
     pub reports: Vec<PathBuf>,
 

@@ -466,7 +466,10 @@ fn two_parts_with_one_name_are_refused() {
         }
         b
     };
-    refused(&renamed(b"3D/3dmodel.model"), "two parts with the same name");
+    refused(
+        &renamed(b"3D/3dmodel.model"),
+        "two parts with the same name",
+    );
     refused(&renamed(b"3D/3DModel.model"), "two parts named");
 }
 

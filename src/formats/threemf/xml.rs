@@ -134,7 +134,9 @@ impl<R: BufRead> BufRead for Capped<R> {
     fn consume(&mut self, n: usize) {
         if self.opening_len < self.opening.len() {
             if let Ok(bytes) = self.inner.fill_buf() {
-                let more = n.min(self.opening.len() - self.opening_len).min(bytes.len());
+                let more = n
+                    .min(self.opening.len() - self.opening_len)
+                    .min(bytes.len());
                 self.opening[self.opening_len..self.opening_len + more]
                     .copy_from_slice(&bytes[..more]);
                 self.opening_len += more;
@@ -885,7 +887,11 @@ mod tests {
             assert_eq!(xml.start as usize, text.find("<a>").unwrap(), "{text:?}");
             xml.next(&mut buf).unwrap();
             assert_eq!(xml.start as usize, text.find("<b/>").unwrap(), "{text:?}");
-            assert_eq!(xml.position() as usize, text.find("</a>").unwrap(), "{text:?}");
+            assert_eq!(
+                xml.position() as usize,
+                text.find("</a>").unwrap(),
+                "{text:?}"
+            );
         }
     }
 
