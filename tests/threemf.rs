@@ -903,6 +903,13 @@ fn bad_numbers_and_indices_are_refused() {
         &package(&model(&tet.replacen("v3=\"1\"", "v3=\"-1\"", 1), item)),
         "triangle 0",
     );
+    // Property ids and indices are whole numbers too (the core spec's ST_ResourceID and
+    // ST_ResourceIndex): refused by the scan as the repair's reading refuses them, where the
+    // scan used to read past them. lib3mf 2.5 refuses `p1="1.5"` and reads past `pid="-1"`.
+    for bad in ["pid=\"-1\" p1=\"0\"", "pid=\"1\" p1=\"1.5\""] {
+        let with = tet.replacen("v3=\"1\"", &format!("v3=\"1\" {bad}"), 1);
+        refused(&package(&model(&with, item)), "a whole number");
+    }
     refused(
         &package(&model(&tet.replacen("x=\"1\"", "x=\"1,5\"", 1), item)),
         "not a number",

@@ -856,13 +856,17 @@ fn plain_triangle(attributes: &[(&[u8], &[u8])], keep: bool) -> Option<([u32; 3]
                 v[k] = index(value)?;
                 got |= 1 << k;
             }
-            b"pid" | b"p1" | b"p2" | b"p3" if keep => {
+            b"pid" | b"p1" | b"p2" | b"p3" => {
                 let k = if name == b"pid" {
                     0
                 } else {
                     usize::from(name[1] - b'0')
                 };
-                properties[k] = index(value)?;
+                // Checked also when not kept: a scan refuses what the repair's reading refuses.
+                let n = index(value)?;
+                if keep {
+                    properties[k] = n;
+                }
             }
             _ => {}
         }
@@ -918,10 +922,10 @@ fn triangle<R: BufRead>(
             (None, b"v1") => (0, true),
             (None, b"v2") => (1, true),
             (None, b"v3") => (2, true),
-            (None, b"pid") if keep => (0, false),
-            (None, b"p1") if keep => (1, false),
-            (None, b"p2") if keep => (2, false),
-            (None, b"p3") if keep => (3, false),
+            (None, b"pid") => (0, false),
+            (None, b"p1") => (1, false),
+            (None, b"p2") => (2, false),
+            (None, b"p3") => (3, false),
             _ => return Ok(()),
         };
         let n = index(value).ok_or_else(|| {
@@ -930,10 +934,12 @@ fn triangle<R: BufRead>(
                 String::from_utf8_lossy(value)
             ))
         })?;
+        // Property indices are checked also when not kept: a scan refuses what the repair's
+        // reading refuses.
         if is_vertex {
             v[slot] = n;
             got |= 1 << slot;
-        } else {
+        } else if keep {
             properties[slot] = n;
         }
         Ok(())
