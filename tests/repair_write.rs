@@ -753,6 +753,47 @@ fn ascii_stl_stays_ascii_with_its_name() {
     assert_eq!(text.matches("facet normal").count(), 12);
 }
 
+/// An ASCII STL of two `solid` blocks (CAD exports write one per body) keeps both, with their
+/// names: each facet in the block of the face it comes from, a fill in its neighbour's block.
+/// Block `box` holds quads 0..4 (faces 0..9), block `lid` quad 5 (faces 10, 11); the plan drops
+/// face 11 and adds it back as a fill near face 0, so `box` gets 11 facets and `lid` 1.
+#[test]
+fn ascii_stl_keeps_its_solid_blocks_and_their_names() {
+    let (_dir, src, out) = dirs();
+    let mut s = String::new();
+    for (name, quads) in [("box", 0..5), ("lid", 5..6)] {
+        s += &format!("solid {name}\n");
+        for q in &QUADS[quads] {
+            s += "facet normal 0 0 0\nouter loop\n";
+            for &v in q {
+                let p = CUBE[v as usize];
+                s += &format!("vertex {} {} {}\n", p[0], p[1], p[2]);
+            }
+            s += "endloop\nendfacet\n";
+        }
+        s += &format!("endsolid {name}\n");
+    }
+    std::fs::write(src.join("two.stl"), &s).unwrap();
+    let mesh = read(&src.join("two.stl"), Format::Stl, &cx(&src))
+        .unwrap()
+        .remove(0);
+    assert_eq!(mesh.triangles.len(), 12);
+    let plan = hand_plan(&mesh, &[1], 2, 11, 0);
+    let copy_path = out.join("two.stl");
+    round_trip(&src.join("two.stl"), Format::Stl, &[Some(plan)], &copy_path);
+    let text = std::fs::read_to_string(&copy_path).unwrap();
+    let blocks: Vec<(String, usize)> = text
+        .split("endsolid")
+        .filter_map(|b| {
+            let at = b.find("solid ")?;
+            let name = b[at + 6..].lines().next().unwrap().to_owned();
+            Some((name, b.matches("facet normal").count()))
+        })
+        .collect();
+    assert_eq!(blocks, [("box".to_owned(), 11), ("lid".to_owned(), 1)]);
+    assert!(text.trim_end().ends_with("endsolid lid"));
+}
+
 // ---- glTF -------------------------------------------------------------------------------------
 
 /// A glTF asset: mesh 0 is a box whose five sides are primitive 0 (material 0) and whose top is

@@ -254,11 +254,27 @@ fn word(token: &[u8]) -> String {
 }
 
 fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+    ascii_solids(bytes, cx).map(|(mesh, _)| mesh)
+}
+
+/// A `solid` block of an ASCII STL: the first of the mesh's faces read after it, and its name
+/// (the rest of its line, trimmed).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Solid {
+    pub first_face: u32,
+    pub name: String,
+}
+
+/// An ASCII STL read as one mesh, with its `solid` blocks in order (the repaired copy keeps them).
+pub(crate) fn ascii_solids(
+    bytes: &[u8],
+    cx: &ReadContext,
+) -> Result<(Mesh, Vec<Solid>), ReadError> {
     let bytes = text::lf_line_ends(bytes);
     let mut tokens = text::Tokens::<false>::new(&bytes, 1);
     let mut mesh = Mesh::default();
     let mut tally = SplitTally::default();
-    let mut solids = 0u64;
+    let mut solids = Vec::new();
     let mut in_loop = false;
     let mut loop_start = 0usize;
     let mut loop_line = 0u64;
@@ -276,8 +292,10 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         };
         match key {
             b"solid" => {
-                solids += 1;
-                tokens.skip_line();
+                solids.push(Solid {
+                    first_face: mesh.triangles.len() as u32,
+                    name: String::from_utf8_lossy(tokens.rest_of_line()).into_owned(),
+                });
             }
             b"endsolid" => tokens.skip_line(),
             b"facet" | b"normal" | b"endfacet" => {}
@@ -341,12 +359,12 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
             "the file ends inside `outer loop` (truncated)".into(),
         );
     }
-    if solids > 1 {
+    if solids.len() > 1 {
         mesh.notes
-            .push(format!("{solids} `solid` blocks read as one mesh"));
+            .push(format!("{} `solid` blocks read as one mesh", solids.len()));
     }
     tally.notes("line", &mut mesh.notes);
-    Ok(mesh)
+    Ok((mesh, solids))
 }
 
 /// The token lower-cased when it is an STL keyword (no allocation); numbers and anything else are

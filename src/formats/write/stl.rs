@@ -1,5 +1,6 @@
 //! Repaired STL: binary stays binary (the 80-byte header kept, each surviving facet's attribute
-//! word kept, 0 for hole fills), ASCII stays ASCII under the first solid's name; which one a file
+//! word kept, 0 for hole fills), ASCII stays ASCII with its `solid` blocks and their names (a
+//! facet in the block of the face it comes from, a fill in its neighbour's); which one a file
 //! is, the reader decides ([`crate::formats::stl::layout`]: a padded binary file is binary, its
 //! padding left out of the copy with a note). Facet normals are
 //! recomputed from the final winding. STL stores no shared vertices, so copies and dropped
@@ -9,7 +10,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{write_atomic, Job, WriteError, Written};
-use crate::formats::stl::{layout, Layout};
+use crate::formats::stl::{ascii_solids, layout, Layout, Solid};
+use crate::formats::ReadContext;
 use crate::geometry::{dot, normal};
 use crate::mesh::Mesh;
 use crate::repair::Plan;
@@ -17,18 +19,28 @@ use crate::repair::Plan;
 /// Writes the copy, with a note when the source's padding after its binary facets is left out.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
     let (bytes, mesh) = job.source_and_mesh()?;
-    let notes = copy(&bytes, &mesh, job.single()?, job.out)?;
+    let notes = copy(&bytes, &mesh, job.single()?, job.out, job.cx)?;
     Ok(job.written(Vec::new(), notes))
 }
 
+/// A facet of the copy: its normal, corners, attribute word and the input face whose block it
+/// goes in.
+type Facet = ([f32; 3], [[f64; 3]; 3], u16, u32);
+
 /// The copy of the source `bytes`, read as `mesh`.
-fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String>, WriteError> {
+fn copy(
+    bytes: &[u8],
+    mesh: &Mesh,
+    plan: &Plan,
+    out: &Path,
+    cx: &ReadContext,
+) -> Result<Vec<String>, WriteError> {
     // Binary exactly when the reader read it as binary (padded files too).
     let (binary, extra) = match layout(bytes)? {
         Layout::Binary { extra, .. } => (true, extra),
         Layout::Ascii | Layout::Empty => (false, 0),
     };
-    let facets: Vec<([f32; 3], [[f64; 3]; 3], u16)> = plan
+    let facets: Vec<Facet> = plan
         .triangles
         .iter()
         .map(|t| {
@@ -53,14 +65,14 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                 }
                 _ => 0,
             };
-            (n, p, attribute)
+            (n, p, attribute, t.near)
         })
         .collect();
     let data = if binary {
         let mut b = Vec::with_capacity(84 + 50 * facets.len());
         b.extend_from_slice(&bytes[..80]);
         b.extend_from_slice(&(facets.len() as u32).to_le_bytes());
-        for (n, p, attribute) in &facets {
+        for (n, p, attribute, _) in &facets {
             let stored = p.iter().flatten().map(|&x| x as f32);
             for x in n.iter().copied().chain(stored) {
                 b.extend_from_slice(&x.to_le_bytes());
@@ -69,18 +81,33 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         }
         b
     } else {
-        let name = solid_name(bytes);
-        let mut s = String::with_capacity(250 * facets.len());
-        let _ = writeln!(s, "solid {name}");
-        for (n, p, _) in &facets {
-            let _ = writeln!(s, "  facet normal {} {} {}", n[0], n[1], n[2]);
-            s.push_str("    outer loop\n");
-            for q in p {
-                let _ = writeln!(s, "      vertex {} {} {}", q[0], q[1], q[2]);
-            }
-            s.push_str("    endloop\n  endfacet\n");
+        let (_, mut solids) = ascii_solids(bytes, cx)?;
+        if solids.is_empty() {
+            solids.push(Solid {
+                first_face: 0,
+                name: String::new(),
+            });
         }
-        let _ = writeln!(s, "endsolid {name}");
+        // The facets in block order, each block's in plan order.
+        let block = |face: u32| solids.partition_point(|b| b.first_face <= face).max(1) - 1;
+        let mut order: Vec<(usize, usize)> =
+            (0..facets.len()).map(|i| (block(facets[i].3), i)).collect();
+        order.sort_unstable();
+        let mut next = order.iter().peekable();
+        let mut s = String::with_capacity(250 * facets.len());
+        for (k, Solid { name, .. }) in solids.iter().enumerate() {
+            let _ = writeln!(s, "solid {name}");
+            while let Some((_, i)) = next.next_if(|(b, _)| *b == k) {
+                let (n, p, _, _) = &facets[*i];
+                let _ = writeln!(s, "  facet normal {} {} {}", n[0], n[1], n[2]);
+                s.push_str("    outer loop\n");
+                for q in p {
+                    let _ = writeln!(s, "      vertex {} {} {}", q[0], q[1], q[2]);
+                }
+                s.push_str("    endloop\n  endfacet\n");
+            }
+            let _ = writeln!(s, "endsolid {name}");
+        }
         s.into_bytes()
     };
     write_atomic(out, &data)?;
@@ -92,12 +119,4 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         ));
     }
     Ok(notes)
-}
-
-/// The name after the first `solid`, trimmed.
-fn solid_name(bytes: &[u8]) -> String {
-    let text = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
-    // The first line, whichever line end it has (a bare CR too, as the reader allows).
-    let line = text.trim_start().split(['\n', '\r']).next().unwrap_or("");
-    line.get(5..).unwrap_or("").trim().to_string()
 }
