@@ -852,6 +852,35 @@ fn placing_an_object_of_type_other_is_refused() {
     );
 }
 
+/// Components that fan out three ways on 42 levels place the mesh 3^42 (about 1.1e20) times, more
+/// than a 64-bit count holds, half of them mirrored (more than the 32-bit `mirrored_instances`
+/// holds): the message says "more than", never a capped number as if it were exact.
+#[test]
+fn placement_counts_past_their_limit_say_more_than() {
+    let (p, t) = tetrahedron();
+    let mut text = mesh_object(1, "tet", &p, &t);
+    for k in 2..=43 {
+        text.push_str(&format!(
+            "<object id=\"{k}\"><components><component objectid=\"{0}\" transform=\"-1 0 0 0 1 0 0 0 1 0 0 0\"/><component objectid=\"{0}\"/><component objectid=\"{0}\"/></components></object>",
+            k - 1
+        ));
+    }
+    let meshes = read_ok(&package(&model(&text, "<item objectid=\"43\"/>")));
+    assert_eq!(meshes.len(), 1);
+    let notes = &meshes[0].notes;
+    assert!(
+        notes.contains(&"more than 18446744073709551614 placements".to_owned()),
+        "{notes:?}"
+    );
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.starts_with("more than 4294967294 mirrored placements")),
+        "{notes:?}"
+    );
+    assert_eq!(meshes[0].mirrored_instances, u32::MAX);
+}
+
 #[test]
 fn component_cycles_and_deep_chains_are_refused() {
     let (p, t) = tetrahedron();

@@ -300,9 +300,19 @@ fn assemble(
             format!("unit {}", unit.name()),
             match placed.total() {
                 1 => "1 placement".to_owned(),
+                // Counts stop at the largest number they hold (components that fan out on many
+                // levels multiply): past it, say so rather than print it as exact.
+                u64::MAX => format!("more than {} placements", u64::MAX - 1),
                 k => format!("{k} placements"),
             },
         ];
+        if placed.negative >= u64::from(u32::MAX) {
+            notes.push(format!(
+                "more than {} mirrored placements (`mirrored_instances` holds {}, its largest value)",
+                u32::MAX - 1,
+                u32::MAX
+            ));
+        }
         if object.kind != Kind::Model {
             notes.push(format!("type {}", object.kind.name()));
         }
