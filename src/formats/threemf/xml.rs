@@ -291,6 +291,9 @@ impl<R: BufRead> Xml<R> {
         namespace: &[u8],
         mut f: impl FnMut(&[(&[u8], &[u8])]) -> Result<bool, ReadError>,
     ) -> Result<(), ReadError> {
+        // Declarations of an element that just ended are out of scope (`next` drops them only
+        // when it reads on).
+        self.namespaces.end(self.depth);
         if self.namespaces.resolve(None) != Ok(Some(namespace)) {
             return Ok(());
         }
@@ -874,6 +877,27 @@ mod tests {
         let (_, event) = xml.next(&mut buf).unwrap();
         let Event::Empty(e) = event else { panic!() };
         assert_eq!(xml.namespace(&e), Some(&b"urn:p"[..]));
+    }
+
+    /// A run after an element that declared the run's namespace and has ended is read in the
+    /// parent's namespace: `<t/>` below is in `urn:x`, so a run of `urn:core` tags takes none.
+    #[test]
+    fn a_run_after_an_ended_declaration_uses_the_parent_namespace() {
+        let text = "<a xmlns='urn:x'><b xmlns='urn:core'></b><t/></a>";
+        let mut xml = Xml::new(text.as_bytes(), "/t.xml");
+        let mut buf = Vec::new();
+        for _ in 0..3 {
+            xml.next(&mut buf).unwrap();
+        }
+        let mut taken = 0;
+        xml.empty_run(b"t", b"urn:core", |_| {
+            taken += 1;
+            Ok(true)
+        })
+        .unwrap();
+        assert_eq!(taken, 0);
+        let (_, event) = xml.next(&mut buf).unwrap();
+        assert!(matches!(event, Event::Empty(_)), "{event:?}");
     }
 
     /// Positions count from the part's first byte, a byte order mark too: the repair splices
