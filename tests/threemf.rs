@@ -473,6 +473,35 @@ fn two_parts_with_one_name_are_refused() {
     refused(&renamed(b"3D/3DModel.model"), "two parts named");
 }
 
+/// Names that differ only in bytes that are not UTF-8 (an old ZIP tool's code page), or in
+/// percent-escapes of such bytes, are different parts: the package reads.
+#[test]
+fn names_differing_in_bytes_that_are_not_utf8_are_different_parts() {
+    let (p, t) = tetrahedron();
+    let text = model(&mesh_object(1, "tet", &p, &t), "<item objectid=\"1\"/>");
+    let mut bytes = package_with(
+        &text,
+        &[
+            ("Metadata/aX.png", b"one"),
+            ("Metadata/aY.png", b"two"),
+            ("Metadata/b%FF.png", b"three"),
+            ("Metadata/b%FE.png", b"four"),
+        ],
+    );
+    for (from, to) in [
+        (&b"aX.png"[..], &b"a\xff.png"[..]),
+        (b"aY.png", b"a\xfe.png"),
+    ] {
+        let mut at = 0;
+        while let Some(i) = find(&bytes[at..], from) {
+            bytes[at + i..at + i + to.len()].copy_from_slice(to);
+            at += i + 1;
+        }
+    }
+    assert!(find(&bytes, b"a\xff.png").is_some() && find(&bytes, b"aX.png").is_none());
+    assert_eq!(read_ok(&bytes).len(), 1);
+}
+
 /// Relationship targets and `p:path` references must name parts of the package: `..` above the
 /// root, absolute `file:` URIs, other schemes, network paths and External targets are refused.
 #[test]

@@ -80,7 +80,7 @@ impl Package {
             if entry.is_dir() {
                 continue;
             }
-            let name = String::from_utf8_lossy(entry.name_raw()).into_owned();
+            let name = entry_name(entry.name_raw());
             if parts.insert(key(&name), index).is_some() {
                 return Err(ReadError::new(format!(
                     "the package holds two parts named `{name}` (part names ignore case): the file is damaged - re-export it"
@@ -132,7 +132,7 @@ impl Package {
             .archive
             .by_index_data(index)
             .map_err(|e| ReadError::new(format!("part /{part}: {e}")))?;
-        let name = format!("/{}", String::from_utf8_lossy(entry.name_raw()));
+        let name = format!("/{}", entry_name(entry.name_raw()));
         if entry.encrypted() {
             return Err(encrypted(&name));
         }
@@ -210,7 +210,7 @@ impl Package {
             .parts
             .get(key)
             .and_then(|&i| self.archive.by_index_data(i).ok())
-            .map(|e| String::from_utf8_lossy(e.name_raw()).into_owned());
+            .map(|e| entry_name(e.name_raw()));
         format!("/{}", name.as_deref().unwrap_or(key))
     }
 
@@ -256,6 +256,19 @@ pub fn encrypted(name: &str) -> ReadError {
     ))
 }
 
+/// A ZIP entry's name as text: each byte that is not UTF-8 as `\xHH`, so that two names differing
+/// only in such bytes stay two names (a lossy decoding would make both `U+FFFD`).
+fn entry_name(raw: &[u8]) -> String {
+    let mut out = String::with_capacity(raw.len());
+    for chunk in raw.utf8_chunks() {
+        out.push_str(chunk.valid());
+        for b in chunk.invalid() {
+            out.push_str(&format!("\\x{b:02X}"));
+        }
+    }
+    out
+}
+
 /// The key of a part name: no leading `/`, percent-escapes decoded, ASCII lower case.
 pub fn key(name: &str) -> String {
     let name = name.strip_prefix('/').unwrap_or(name);
@@ -274,7 +287,7 @@ pub fn key(name: &str) -> String {
         out.push(bytes[i]);
         i += 1;
     }
-    String::from_utf8_lossy(&out).to_ascii_lowercase()
+    entry_name(&out).to_ascii_lowercase()
 }
 
 /// Resolves `target` (a relationship target or a `p:path`) against the folder of the part `source`
