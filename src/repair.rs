@@ -32,7 +32,7 @@ use crate::geometry::exact::segments_touch;
 use crate::geometry::polygon::{newell, project, triangulate, Split};
 use crate::mesh::Mesh;
 use crate::topology::analyse::is_flat;
-use crate::topology::built::{table_of, welded_face, zero_area_bound, FaceKind};
+use crate::topology::built::{table_of, welded_face, FaceKind, ZeroArea};
 use crate::topology::intersect::{intersect_table, Search};
 use crate::topology::nesting::{depths, ShellGeometry};
 use crate::topology::sets::{find, union};
@@ -981,7 +981,7 @@ impl<'a> Work<'a> {
         // As in the analysis, shells whose faces meet have no depth against each other (so a
         // shell crossing another is not turned for it).
         let meeting = if shells.len() > 1 {
-            let bound = zero_area_bound(bounding_box(&self.points));
+            let bound = ZeroArea::of(bounding_box(&self.points));
             let component_of = |t: u32| component[t as usize];
             let search = Search::default();
             intersect_table(&self.points, table, &component_of, bound, None, &search)
@@ -1252,7 +1252,7 @@ impl<'a> Work<'a> {
             }
         }
         let (all, number) = table_of(faces, number, self.points.len());
-        let bound = zero_area_bound(bounding_box(&self.points));
+        let bound = ZeroArea::of(bounding_box(&self.points));
         let met = intersect_table(
             &self.points,
             &all,

@@ -1612,6 +1612,40 @@ fn zero_area_threshold_is_1e_12_diagonal_squared() {
     assert_volume(a.volume(), Some(1.0 / 6.0));
 }
 
+/// The threshold test above with every coordinate times 2^k, k = -900, -600, 600, 900 (1e-271 to
+/// 1e271): scaling by a power of two is exact, and the threshold is a ratio of areas, so the counts
+/// are the same. Fourth powers of lengths at these scales overflow or underflow; before the test
+/// measured faces in scaled coordinates, every face was zero-area at 1e200 and at 1e-300.
+#[test]
+fn zero_area_threshold_holds_at_every_scale() {
+    let mut mesh = tetrahedron();
+    for (h, z) in [(7.4e-12, 0.5), (7.6e-12, 0.25)] {
+        let base = mesh.positions.len() as u32;
+        mesh.positions
+            .extend([[0.1, 0.0, z], [0.9, 0.0, z], [0.1, h, z]]);
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    for k in [-900, -600, 600, 900] {
+        let mut scaled = mesh.clone();
+        for p in &mut scaled.positions {
+            *p = p.map(|x| x * 2f64.powi(k));
+        }
+        let a = run(&scaled);
+        assert_eq!(
+            counts(&a),
+            Counts {
+                zero_area_faces: 1,
+                border_edges: 6,
+                components: 3,
+                shells: 1,
+                ..clean(10, 12, 6)
+            },
+            "2^{k}"
+        );
+        assert_eq!(a.holes(), 2, "2^{k}");
+    }
+}
+
 /// A closed cube `[10,11]^3` next to the Moebius strip of [`moebius_strip_is_not_orientable`] (within
 /// radius 2.5 of the origin, so no position is shared): V 8 + 10 = 18, E 18 + 20 = 38, F 12 + 10 = 22,
 /// chi = 2 + 0 = 2; 2 components; the strip's 10 border edges make 1 hole; its rung 0 is the 1

@@ -16,7 +16,7 @@
 //! Every walk is iterative; every step is linear in the number of corners, except nesting (pruned by
 //! bounding boxes).
 
-use super::built::{build, cross2, on_every_thread, zero_area_bound, Built, LeftOut};
+use super::built::{build, cross2, on_every_thread, Built, LeftOut, ZeroArea};
 use super::intersect::intersect_table;
 use super::nesting::{depths, ShellGeometry};
 use super::sets::{find, union};
@@ -85,11 +85,11 @@ fn analyse_built(
     // 1. Faces: count zero-area ones (the table holds the valid, non-degenerate ones); it reads no
     // other step's result, so it runs beside the shells (below), the one step that cannot be
     // split over threads.
-    let zero_cross2 = zero_area_bound(a.bbox);
+    let zero_area = ZeroArea::of(a.bbox);
     let faces_pass = || {
         // Areas in vertex order: neighbouring faces share vertices, so their positions are mostly
         // in cache (in input order a shuffled mesh misses it for nearly every corner).
-        let (mut zero_area, mut area) = (0, 0.0);
+        let (mut zero_faces, mut area) = (0, 0.0);
         for t in table.triangles() {
             // Written out: `array::map` is not inlined here.
             let [p, q, r] = [
@@ -98,12 +98,12 @@ fn analyse_built(
                 points[t[2] as usize],
             ];
             let cross2 = cross2(p, q, r);
-            if cross2 <= zero_cross2 {
-                zero_area += 1;
+            if zero_area.is_zero(cross2, p, q, r) {
+                zero_faces += 1;
             }
             area += 0.5 * cross2.sqrt();
         }
-        (zero_area, area, count_duplicates(table))
+        (zero_faces, area, count_duplicates(table))
     };
 
     // 2. Patches with orientation parity, then components.
@@ -174,7 +174,7 @@ fn analyse_built(
                 points,
                 table,
                 &component_of,
-                zero_cross2,
+                zero_area,
                 Some(&built.source),
                 &search,
             )

@@ -97,11 +97,62 @@ impl FaceKind {
     }
 }
 
-/// The largest [`cross2`] of a zero-area face in a mesh with this bounding box: a face's area is at
-/// most 1e-12 x (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`.
-pub(crate) fn zero_area_bound(bbox: Option<[[f64; 3]; 2]>) -> f64 {
-    let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(lo, hi));
-    (2e-12 * diagonal2).powi(2)
+/// The zero-area test of a mesh with a given bounding box: a face's area is at most 1e-12 x
+/// (bounding-box diagonal)^2, that is `|cross|^2 <= (2e-12 d^2)^2`. Both sides are fourth powers
+/// of lengths, which overflow past about 1e77 and underflow below about 1e-77 (a tetrahedron at
+/// 1e200 or 1e-300 had every face "zero-area"): a box whose largest coordinate is beyond 2^±100
+/// is measured with every point times a power of two that brings it near 1, which is exact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZeroArea {
+    /// The largest [`cross2`] of a zero-area face, in scaled coordinates.
+    bound: f64,
+    /// The power of two, in two factors (so neither overflows); both 1 when the box is in range.
+    scale: [f64; 2],
+}
+
+impl ZeroArea {
+    /// The test for a mesh with this bounding box (`None`: no finite vertex).
+    pub(crate) fn of(bbox: Option<[[f64; 3]; 2]>) -> ZeroArea {
+        let largest = bbox.map_or(0.0, |[lo, hi]| {
+            lo.iter().chain(&hi).map(|x| x.abs()).fold(0.0, f64::max)
+        });
+        let scale = if largest == 0.0
+            || !largest.is_finite()
+            || (2f64.powi(-100)..=2f64.powi(100)).contains(&largest)
+        {
+            [1.0, 1.0]
+        } else {
+            let e = largest.log2().floor() as i32;
+            [2f64.powi(-e / 2), 2f64.powi(-(e - e / 2))]
+        };
+        let scaled = |p: [f64; 3]| p.map(|x| x * scale[0] * scale[1]);
+        let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(scaled(lo), scaled(hi)));
+        ZeroArea {
+            bound: (2e-12 * diagonal2).powi(2),
+            scale,
+        }
+    }
+
+    /// A test that leaves out the faces whose [`cross2`] is at most `bound` (in the points' own
+    /// coordinates).
+    #[cfg(test)]
+    pub(crate) fn at_most(bound: f64) -> ZeroArea {
+        ZeroArea {
+            bound,
+            scale: [1.0, 1.0],
+        }
+    }
+
+    /// Whether triangle `a b c`, whose [`cross2`] is `cross2`, has zero area.
+    #[inline]
+    pub(crate) fn is_zero(&self, cross2_abc: f64, a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> bool {
+        if self.scale == [1.0, 1.0] {
+            cross2_abc <= self.bound
+        } else {
+            let s = |p: [f64; 3]| p.map(|x| x * self.scale[0] * self.scale[1]);
+            cross2(s(a), s(b), s(c)) <= self.bound
+        }
+    }
 }
 
 /// `|(b - a) x (c - a)|^2`: four times the squared area of triangle `a b c`.

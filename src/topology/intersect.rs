@@ -38,7 +38,7 @@ mod tree;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 
-use super::built::{cross2, zero_area_bound, Built};
+use super::built::{cross2, Built, ZeroArea};
 use crate::corner_table::CornerTable;
 use crate::geometry::curve;
 use crate::pages::prefetch;
@@ -51,9 +51,8 @@ pub struct Surface<'a> {
     pub table: &'a CornerTable,
     /// The component of table face `t`.
     pub component: &'a (dyn Fn(u32) -> u32 + Sync),
-    /// Faces whose `cross2` (four times the squared area) is at most this are left out (zero-area
-    /// faces; see `topology::built::zero_area_bound`).
-    pub zero_bound: f64,
+    /// The zero-area faces, which are left out.
+    pub zero_area: ZeroArea,
     /// The number of table face `t` in the findings (pairs, involved faces), for instance its input
     /// face; `None`: its table number. The kept pairs are the lowest in this numbering.
     pub number: Option<&'a [u32]>,
@@ -187,20 +186,20 @@ pub fn intersections_built(
         &built.welded.positions,
         &built.table,
         &|t| built.component[t as usize],
-        zero_area_bound(bbox),
+        ZeroArea::of(bbox),
         Some(&built.source),
         search,
     )
 }
 
-/// The faces of `table` (over `points`) that meet, leaving out its zero-area faces: those whose
-/// [`cross2`] is at most `zero_bound` ([`zero_area_bound`] of the mesh's box). `component` and
+/// The faces of `table` (over `points`) that meet, leaving out its zero-area faces (`zero_area`,
+/// of the mesh's box). `component` and
 /// `number` as in [`Surface`].
 pub(crate) fn intersect_table(
     points: &[[f64; 3]],
     table: &CornerTable,
     component: &(dyn Fn(u32) -> u32 + Sync),
-    zero_bound: f64,
+    zero_area: ZeroArea,
     number: Option<&[u32]>,
     search: &Search,
 ) -> Intersections {
@@ -208,7 +207,7 @@ pub(crate) fn intersect_table(
         points,
         table,
         component,
-        zero_bound,
+        zero_area,
         number,
     };
     intersect(&surface, search)
@@ -238,7 +237,9 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
         // The zero-area bound is the mesh's own: measure the face in its own coordinates.
         let own = triangles[t as usize].map(|v| surface.points[v as usize]);
         let [a, b, c] = own;
-        if cross2(a, b, c) > surface.zero_bound && !stars::is_set(&stars.collinear, t) {
+        if !surface.zero_area.is_zero(cross2(a, b, c), a, b, c)
+            && !stars::is_set(&stars.collinear, t)
+        {
             // The middle of the face's box (any point near the face orders it as well).
             let p = if scaled.is_some() { corners(t) } else { own };
             let middle = std::array::from_fn(|k| {

@@ -544,7 +544,14 @@ mod tests {
             first_only: false,
             ..Search::default()
         };
-        let found = intersect_table(points, &table, &|_| 0, 0.0, None, &search);
+        let found = intersect_table(
+            points,
+            &table,
+            &|_| 0,
+            crate::topology::built::ZeroArea::at_most(0.0),
+            None,
+            &search,
+        );
         (every, found.self_intersections)
     }
 
