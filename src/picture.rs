@@ -29,6 +29,7 @@ use std::fmt::Write;
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
+use crate::geometry::{largest_coordinate, unit_scale};
 use crate::topology::{Places, NO_SHELL};
 
 /// The most faces drawn; bigger meshes are simplified.
@@ -76,6 +77,16 @@ pub fn draw(places: &Places) -> Option<String> {
     if places.triangles.is_empty() {
         return None;
     }
+    // Far from 1 (past 2^±100), projections, normals and the fit overflow or underflow: draw
+    // the places times a power of two, which changes nothing but the units.
+    let rescaled;
+    let places = match in_range(places) {
+        Some(scaled) => {
+            rescaled = scaled;
+            &rescaled
+        }
+        None => places,
+    };
     let looks = looks(places);
     let simplified;
     let (points, triangles, looks) = if places.triangles.len() > MAX_FACES {
@@ -107,6 +118,21 @@ pub fn draw(places: &Places) -> Option<String> {
     }
     svg.push_str("</svg>");
     Some(svg)
+}
+
+/// `places` with every point and shell box times the power of two that brings the largest
+/// coordinate near 1 ([`unit_scale`]); `None` when they are in range as they are.
+fn in_range(places: &Places) -> Option<Places> {
+    let [s1, s2] = unit_scale(largest_coordinate(&places.points))?;
+    let scale = |p: [f64; 3]| p.map(|x| x * s1 * s2);
+    let mut scaled = places.clone();
+    for p in &mut scaled.points {
+        *p = scale(*p);
+    }
+    for (_, [lo, hi]) in &mut scaled.shells {
+        (*lo, *hi) = (scale(*lo), scale(*hi));
+    }
+    Some(scaled)
 }
 
 /// The look flags of every face of `places`.
@@ -611,6 +637,19 @@ mod tests {
     /// nonzero fill rule gives winding number 0 where they overlap: a hole in the picture. Written
     /// clockwise, every outline turns the same way, so the winding number of the centre of every
     /// face, summed over the outlines of its path, is at least one.
+    /// A cube drawn at 2^1000 (near the largest `f64`) and at 2^-1070 (subnormal) is drawn as
+    /// the unit cube: the picture scales the places by a power of two first, exactly. Before, the
+    /// projections overflowed or underflowed and the faces were drawn as garbage or not at all.
+    #[test]
+    fn a_cube_at_an_extreme_scale_is_drawn_as_the_unit_cube() {
+        let unit = picture(&cube(0.0, 1.0)).unwrap();
+        for k in [1000, -1070] {
+            let side = 2f64.powi(k);
+            assert!(side > 0.0 && side.is_finite());
+            assert_eq!(picture(&cube(0.0, side)).unwrap(), unit, "2^{k}");
+        }
+    }
+
     #[test]
     fn no_face_cancels_another() {
         let svg = picture(&flipped(cube(0.0, 1.0))).unwrap();

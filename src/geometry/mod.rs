@@ -72,6 +72,32 @@ pub fn bounding_box<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> Optio
     bbox
 }
 
+/// The power of two (in two factors, so that neither overflows) that brings `largest`, the
+/// largest absolute coordinate of some points, near 1, when it is beyond 2^±100 (where products
+/// of coordinates could overflow or underflow); `None` when it is in range, zero or not finite.
+/// Multiplying by a power of two is exact (short of the subnormal range), so signs and ratios
+/// computed on scaled points are the points' own.
+pub(crate) fn unit_scale(largest: f64) -> Option<[f64; 2]> {
+    if largest == 0.0
+        || !largest.is_finite()
+        || (2f64.powi(-100)..=2f64.powi(100)).contains(&largest)
+    {
+        return None;
+    }
+    let e = largest.log2().floor() as i32;
+    Some([2f64.powi(-e / 2), 2f64.powi(-(e - e / 2))])
+}
+
+/// The largest finite absolute coordinate of `points` (0 when there is none).
+pub(crate) fn largest_coordinate<'a>(points: impl IntoIterator<Item = &'a [f64; 3]>) -> f64 {
+    points
+        .into_iter()
+        .flatten()
+        .map(|x| x.abs())
+        .filter(|x| x.is_finite())
+        .fold(0.0, f64::max)
+}
+
 /// A tiny deterministic xorshift generator of 64-bit words for the unit tests: no dependency, no
 /// flakiness.
 #[cfg(test)]

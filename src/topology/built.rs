@@ -113,18 +113,8 @@ pub struct ZeroArea {
 impl ZeroArea {
     /// The test for a mesh with this bounding box (`None`: no finite vertex).
     pub(crate) fn of(bbox: Option<[[f64; 3]; 2]>) -> ZeroArea {
-        let largest = bbox.map_or(0.0, |[lo, hi]| {
-            lo.iter().chain(&hi).map(|x| x.abs()).fold(0.0, f64::max)
-        });
-        let scale = if largest == 0.0
-            || !largest.is_finite()
-            || (2f64.powi(-100)..=2f64.powi(100)).contains(&largest)
-        {
-            [1.0, 1.0]
-        } else {
-            let e = largest.log2().floor() as i32;
-            [2f64.powi(-e / 2), 2f64.powi(-(e - e / 2))]
-        };
+        let largest = bbox.map_or(0.0, |b| crate::geometry::largest_coordinate(&b));
+        let scale = crate::geometry::unit_scale(largest).unwrap_or([1.0, 1.0]);
         let scaled = |p: [f64; 3]| p.map(|x| x * scale[0] * scale[1]);
         let diagonal2 = bbox.map_or(0.0, |[lo, hi]| dist2(scaled(lo), scaled(hi)));
         ZeroArea {

@@ -41,6 +41,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use super::built::{cross2, Built, ZeroArea};
 use crate::corner_table::CornerTable;
 use crate::geometry::curve;
+use crate::geometry::{largest_coordinate, unit_scale};
 use crate::pages::prefetch;
 use tree::{Placed, Tree, Visit};
 
@@ -346,19 +347,7 @@ fn points_grid(points: &[[f64; 3]]) -> curve::Grid {
 /// leave the range of `f32`); `None` when they are fine as they are. Scaling by a power of two is
 /// exact, so no sign changes.
 fn scaled_points(points: &[[f64; 3]]) -> Option<Vec<[f64; 3]>> {
-    let largest = points
-        .iter()
-        .flatten()
-        .map(|x| x.abs())
-        .filter(|x| x.is_finite())
-        .fold(0.0f64, f64::max);
-    let (lo, hi) = (2f64.powi(-100), 2f64.powi(100));
-    if largest == 0.0 || (lo..=hi).contains(&largest) {
-        return None;
-    }
-    // 2^-e with e the exponent of the largest coordinate, in two factors so neither overflows.
-    let e = largest.log2().floor() as i32;
-    let (s1, s2) = (2f64.powi(-e / 2), 2f64.powi(-(e - e / 2)));
+    let [s1, s2] = unit_scale(largest_coordinate(points))?;
     Some(points.iter().map(|p| p.map(|x| x * s1 * s2)).collect())
 }
 
