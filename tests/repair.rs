@@ -53,13 +53,7 @@ fn clean_mesh_is_left_alone() {
 /// triangles. Result: one closed, oriented, outward shell of volume 1 (V 8, E 18, F 12).
 #[test]
 fn open_box_with_a_flipped_face_becomes_a_closed_outward_cube() {
-    let cube = shapes::cube();
-    let top = top_faces(&cube);
-    let mut mesh = cube.clone();
-    mesh.triangles = (0..12)
-        .filter(|t| !top.contains(t))
-        .map(|t| cube.triangles[t])
-        .collect();
+    let mut mesh = open_box();
     mesh.triangles[0].swap(1, 2);
     let (p, out, a) = repaired(&mesh);
     assert_eq!(count(&p, Kind::OrientFaces), 1);
@@ -91,13 +85,7 @@ fn open_box_with_a_flipped_face_becomes_a_closed_outward_cube() {
 /// the hole is left open and said so, and the copy is the source's 14 faces.
 #[test]
 fn holes_closed_by_kept_invalid_faces_are_not_filled() {
-    let cube = shapes::cube();
-    let top = top_faces(&cube);
-    let mut mesh = cube.clone();
-    mesh.triangles = (0..12)
-        .filter(|t| !top.contains(t))
-        .map(|t| cube.triangles[t])
-        .collect();
+    let mut mesh = open_box();
     let nan = mesh.positions.len() as u32;
     mesh.positions.push([f64::NAN, 0.5, 1.0]);
     // The top square's corners in turn, counter-clockwise seen from above.
@@ -137,6 +125,18 @@ fn holes_closed_by_kept_invalid_faces_are_not_filled() {
 }
 
 /// The two faces of the cube with all four vertices at z = 1.
+/// The unit cube without its top two triangles (z = 1): 10 faces, one square hole.
+fn open_box() -> Mesh {
+    let cube = shapes::cube();
+    let top = top_faces(&cube);
+    let mut mesh = cube.clone();
+    mesh.triangles = (0..12)
+        .filter(|t| !top.contains(t))
+        .map(|t| cube.triangles[t])
+        .collect();
+    mesh
+}
+
 fn top_faces(cube: &Mesh) -> Vec<usize> {
     (0..12)
         .filter(|&t| {

@@ -1580,6 +1580,20 @@ fn zero_area_face_is_counted_and_kept() {
     assert_volume(a.volume(), Some(1.0 / 6.0));
 }
 
+/// The tetrahedron plus two separate right triangles in its box `[0,1]^3`, legs 0.8 along x and
+/// h along y (area 0.4 h): h = 7.4e-12 (area 2.96e-12) at z = 0.5, h = 7.6e-12 (3.04e-12) at
+/// z = 0.25.
+fn tetrahedron_and_thin_triangles() -> Mesh {
+    let mut mesh = tetrahedron();
+    for (h, z) in [(7.4e-12, 0.5), (7.6e-12, 0.25)] {
+        let base = mesh.positions.len() as u32;
+        mesh.positions
+            .extend([[0.1, 0.0, z], [0.9, 0.0, z], [0.1, h, z]]);
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    mesh
+}
+
 /// SPEC 4's threshold, area <= 1e-12 x (bounding-box diagonal)^2, with 1% to spare either way: the
 /// tetrahedron (box `[0,1]^3`, diagonal^2 = 3, threshold 3e-12) plus two separate right triangles in
 /// that box, legs 0.8 along x and h along y, area 0.4 h: h = 7.4e-12 gives 2.96e-12 (zero-area),
@@ -1590,13 +1604,7 @@ fn zero_area_face_is_counted_and_kept() {
 /// E 3 F 1, one hole, genus 0); 6 border edges; one shell, volume 1/6.
 #[test]
 fn zero_area_threshold_is_1e_12_diagonal_squared() {
-    let mut mesh = tetrahedron();
-    for (h, z) in [(7.4e-12, 0.5), (7.6e-12, 0.25)] {
-        let base = mesh.positions.len() as u32;
-        mesh.positions
-            .extend([[0.1, 0.0, z], [0.9, 0.0, z], [0.1, h, z]]);
-        mesh.triangles.push([base, base + 1, base + 2]);
-    }
+    let mesh = tetrahedron_and_thin_triangles();
     let a = run(&mesh);
     assert_eq!(
         counts(&a),
@@ -1618,13 +1626,7 @@ fn zero_area_threshold_is_1e_12_diagonal_squared() {
 /// measured faces in scaled coordinates, every face was zero-area at 1e200 and at 1e-300.
 #[test]
 fn zero_area_threshold_holds_at_every_scale() {
-    let mut mesh = tetrahedron();
-    for (h, z) in [(7.4e-12, 0.5), (7.6e-12, 0.25)] {
-        let base = mesh.positions.len() as u32;
-        mesh.positions
-            .extend([[0.1, 0.0, z], [0.9, 0.0, z], [0.1, h, z]]);
-        mesh.triangles.push([base, base + 1, base + 2]);
-    }
+    let mesh = tetrahedron_and_thin_triangles();
     for k in [-900, -600, 600, 900] {
         let mut scaled = mesh.clone();
         for p in &mut scaled.positions {
