@@ -72,7 +72,7 @@ pub fn case(outcome: &Outcome) -> TestCase {
     } else {
         format!("{}#{}", row.path, row.mesh)
     };
-    let line = |f: &crate::rules::Finding| escaped(&format!("{}: {}", f.rule, f.message), false);
+    let line = |f: &crate::rules::Finding| escaped(&format!("{}: {}", f.rule, f.message));
     let of = |severity: Severity| -> Vec<String> {
         outcome
             .findings
@@ -93,19 +93,19 @@ pub fn case(outcome: &Outcome) -> TestCase {
         }
         Status::Error => {
             let mut status = TestCaseStatus::non_success(NonSuccessKind::Error);
-            status.set_message(escaped(&row.message, false));
+            status.set_message(escaped(&row.message));
             status.set_type("unreadable");
             status
         }
         Status::Empty => {
             let mut status = TestCaseStatus::skipped();
-            status.set_message(escaped(&row.message, false));
+            status.set_message(escaped(&row.message));
             status
         }
     };
-    let mut case = TestCase::new(escaped(&name, false), status);
+    let mut case = TestCase::new(escaped(&name), status);
     let folder = row.path.rsplit_once('/').map_or(".", |(folder, _)| folder);
-    case.set_classname(escaped(folder, false));
+    case.set_classname(escaped(folder));
     if let Some(millis) = row.millis.filter(|m| m.is_finite() && *m >= 0.0) {
         case.set_time(Duration::from_secs_f64(millis / 1e3));
     }
@@ -116,14 +116,12 @@ pub fn case(outcome: &Outcome) -> TestCase {
     case
 }
 
-/// `text` with the characters XML 1.0 cannot hold, and line ends and tabs unless `lines` (an
-/// attribute's value turns them into spaces), written as `\x0a`-style escapes (see the module
-/// docs).
-fn escaped(text: &str, lines: bool) -> String {
+/// `text` with the characters XML 1.0 cannot hold, and line ends and tabs (an attribute's value
+/// turns them into spaces), written as `\x0a`-style escapes (see the module docs).
+fn escaped(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
         match c {
-            '\n' | '\t' if lines => out.push(c),
             '\u{fffe}' | '\u{ffff}' => out.push_str(&format!("\\u{{{:04x}}}", u32::from(c))),
             c if c.is_control() => out.push_str(&format!("\\x{:02x}", u32::from(c))),
             c => out.push(c),
