@@ -889,9 +889,20 @@ fn three_shards_merged_equal_the_unsharded_scan() {
     );
     assert_eq!(overlap.code, 2);
     assert!(
-        overlap.stderr.contains("must not overlap"),
+        overlap.stderr.contains("both hold shard 1/2") && overlap.stderr.contains("given twice"),
         "{}",
         overlap.stderr
+    );
+    // A shard's report missing: two of the three, read as shards of 2, mix shards.
+    let missing = meshvet(
+        dir.path(),
+        &["merge", "shard1.csv", "shard2.csv", "--csv", "bad.csv"],
+    );
+    assert_eq!(missing.code, 2);
+    assert!(
+        missing.stderr.contains("is a shard's report missing"),
+        "{}",
+        missing.stderr
     );
     assert!(!dir.path().join("bad.csv").exists());
     write(dir.path(), "other.csv", b"path,mesh,status\nz.obj,,pass\n");
@@ -901,7 +912,9 @@ fn three_shards_merged_equal_the_unsharded_scan() {
     );
     assert_eq!(mismatch.code, 2);
     assert!(
-        mismatch.stderr.contains("different columns"),
+        mismatch
+            .stderr
+            .contains("has other columns than this meshvet's CSV"),
         "{}",
         mismatch.stderr
     );
