@@ -630,13 +630,6 @@ mod tests {
         }
     }
 
-    /// A cube wound inward is one inside-out shell: all twelve faces are violet, those turned
-    /// toward the viewer and those turned away alike. Seen from outside, every point of its outline
-    /// is covered by a face turned toward the viewer and one turned away, whose stored windings run
-    /// opposite ways on screen; where two such faces share a shade they share a path, and the
-    /// nonzero fill rule gives winding number 0 where they overlap: a hole in the picture. Written
-    /// clockwise, every outline turns the same way, so the winding number of the centre of every
-    /// face, summed over the outlines of its path, is at least one.
     /// A cube drawn at 2^1000 (near the largest `f64`) and at 2^-1070 (subnormal) is drawn as
     /// the unit cube: the picture scales the places by a power of two first, exactly. Before, the
     /// projections overflowed or underflowed and the faces were drawn as garbage or not at all.
@@ -650,6 +643,13 @@ mod tests {
         }
     }
 
+    /// A cube wound inward is one inside-out shell: all twelve faces are violet, those turned
+    /// toward the viewer and those turned away alike. Seen from outside, every point of its outline
+    /// is covered by a face turned toward the viewer and one turned away, whose stored windings run
+    /// opposite ways on screen; where two such faces share a shade they share a path, and the
+    /// nonzero fill rule gives winding number 0 where they overlap: a hole in the picture. Written
+    /// clockwise, every outline turns the same way, so the winding number of the centre of every
+    /// face, summed over the outlines of its path, is at least one.
     #[test]
     fn no_face_cancels_another() {
         let svg = picture(&flipped(cube(0.0, 1.0))).unwrap();

@@ -257,6 +257,18 @@ fn parse_ascii(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     ascii_solids(bytes, cx).map(|(mesh, _)| mesh)
 }
 
+/// The file's bytes read as [`read`] reads them, with an ASCII file's `solid` blocks (none for a
+/// binary file): what the repaired copy needs, from one parse.
+pub(crate) fn parse_with_solids(
+    bytes: &[u8],
+    cx: &ReadContext,
+) -> Result<(Mesh, Vec<Solid>), ReadError> {
+    match layout(bytes)? {
+        Layout::Ascii => ascii_solids(bytes, cx),
+        _ => Ok((parse(bytes, cx)?, Vec::new())),
+    }
+}
+
 /// A `solid` block of an ASCII STL: the first of the mesh's faces read after it, and its name
 /// (the rest of its line, trimmed).
 #[derive(Debug, Clone, PartialEq)]
@@ -266,10 +278,7 @@ pub(crate) struct Solid {
 }
 
 /// An ASCII STL read as one mesh, with its `solid` blocks in order (the repaired copy keeps them).
-pub(crate) fn ascii_solids(
-    bytes: &[u8],
-    cx: &ReadContext,
-) -> Result<(Mesh, Vec<Solid>), ReadError> {
+fn ascii_solids(bytes: &[u8], cx: &ReadContext) -> Result<(Mesh, Vec<Solid>), ReadError> {
     let bytes = text::lf_line_ends(bytes);
     let mut tokens = text::Tokens::<false>::new(&bytes, 1);
     let mut mesh = Mesh::default();

@@ -10,16 +10,16 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{write_atomic, Job, WriteError, Written};
-use crate::formats::stl::{ascii_solids, layout, Layout, Solid};
-use crate::formats::ReadContext;
+use crate::formats::stl::{layout, parse_with_solids, Layout, Solid};
 use crate::geometry::{dot, normal};
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
 /// Writes the copy, with a note when the source's padding after its binary facets is left out.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    let (bytes, mesh) = job.source_and_mesh()?;
-    let notes = copy(&bytes, &mesh, job.single()?, job.out, job.cx)?;
+    let bytes = crate::formats::read_regular(job.source)?;
+    let (mesh, solids) = parse_with_solids(&bytes, job.cx)?;
+    let notes = copy(&bytes, &mesh, &solids, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), notes))
 }
 
@@ -27,13 +27,13 @@ pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
 /// goes in.
 type Facet = ([f32; 3], [[f64; 3]; 3], u16, u32);
 
-/// The copy of the source `bytes`, read as `mesh`.
+/// The copy of the source `bytes`, read as `mesh` with these `solid` blocks (ASCII).
 fn copy(
     bytes: &[u8],
     mesh: &Mesh,
+    solids: &[Solid],
     plan: &Plan,
     out: &Path,
-    cx: &ReadContext,
 ) -> Result<Vec<String>, WriteError> {
     // Binary exactly when the reader read it as binary (padded files too).
     let (binary, extra) = match layout(bytes)? {
@@ -81,13 +81,15 @@ fn copy(
         }
         b
     } else {
-        let (_, mut solids) = ascii_solids(bytes, cx)?;
-        if solids.is_empty() {
-            solids.push(Solid {
-                first_face: 0,
-                name: String::new(),
-            });
-        }
+        let unnamed = [Solid {
+            first_face: 0,
+            name: String::new(),
+        }];
+        let solids = if solids.is_empty() {
+            &unnamed[..]
+        } else {
+            solids
+        };
         // The facets in block order, each block's in plan order.
         let block = |face: u32| solids.partition_point(|b| b.first_face <= face).max(1) - 1;
         let mut order: Vec<(usize, usize)> =
