@@ -15,7 +15,8 @@
 //!    ear clipping finds no ear, and a concave one over 1,024 edges are left open, as is one
 //!    through a corner of a face with an invalid vertex that step 1 kept),
 //!    new faces wound like their neighbours, their corners carrying the attributes of the border
-//!    corners;
+//!    corners (the writers give a corner the fill's own normal where the border corner's is more
+//!    than 60 degrees from it: [`crate::formats::write`]);
 //! 5. flip closed shells whose volume sign is wrong for their nesting depth (after the fills, so a
 //!    shell a fill closed is judged too; the `repairs` column still lists it before the fills, in the
 //!    documented order);

@@ -586,6 +586,24 @@ fn repaired_copies_of_the_samples_are_proved_by_rescanning_them() {
     }
     assert_eq!(lines_with(&text, "vt").len(), 4);
     assert_eq!(lines_with(&text, "vn").len(), 6);
+    // The fill's corners, on the walls' border corners, take the lid's own normal: the file's
+    // own `vn 0 1 0` (the removed top's), not a wall's.
+    let faces = corner_normals(&out.join("props/crate_open.obj"));
+    let top = faces
+        .iter()
+        .flatten()
+        .map(|(p, _)| p[1])
+        .fold(f64::MIN, f64::max);
+    let lid: Vec<_> = faces
+        .iter()
+        .filter(|f| f.iter().all(|(p, _)| p[1] == top))
+        .collect();
+    assert_eq!(lid.len(), 2);
+    assert!(lid
+        .iter()
+        .copied()
+        .flatten()
+        .all(|&(_, n)| n == [0.0, 1.0, 0.0]));
     assert_eq!(lines_with(&text, "usemtl"), ["usemtl wood"]);
     assert_eq!(lines_with(&text, "mtllib"), ["mtllib crate.mtl"]);
     for side in ["crate.mtl", "crate.png"] {
@@ -626,8 +644,9 @@ fn repaired_copies_of_the_samples_are_proved_by_rescanning_them() {
     assert_eq!(colours, expected);
 
     // glTF and GLB: the box is closed and outward; the copies load with the gltf crate; the
-    // primitive keeps its material and attributes, 20 vertices each (the fill reuses the border's
-    // vertices), 12 triangles.
+    // primitive keeps its material and attributes, 24 vertices each (the source's 20, which the
+    // fill reuses, and a copy of each of the 4 hole corners' with the lid's normal: the border
+    // corners are the walls', at 90 degrees to it), 12 triangles.
     for path in ["extra/open_box.gltf", "extra/open_box.glb"] {
         assert_eq!(
             row(path)["repairs"],
@@ -656,7 +675,7 @@ fn repaired_copies_of_the_samples_are_proved_by_rescanning_them() {
             doc["accessors"][prim["attributes"][name].as_u64().unwrap() as usize]["count"].clone()
         };
         for name in ["POSITION", "NORMAL", "TEXCOORD_0"] {
-            assert_eq!(count(name), json!(20), "{path}: {name}");
+            assert_eq!(count(name), json!(24), "{path}: {name}");
         }
         assert_eq!(
             doc["accessors"][prim["indices"].as_u64().unwrap() as usize]["count"],
@@ -717,8 +736,11 @@ fn indices(doc: &Value, bin: &[u8], a: usize) -> Vec<u32> {
 /// less) in a temporary copy, which the binary repairs. The copy is closed again with the file's
 /// triangle count, keeps its material, texture and attribute names, and every attribute has as
 /// many values as the cut source still uses (the fill reuses the border's vertices; the vertices
-/// only the cut triangles used are dropped): for the box, whose first two triangles are one whole
-/// side with 4 vertices of its own, 24 - 4 = 20. The box stays the cube of side 1 (volume 1).
+/// only the cut triangles used are dropped), plus a vertex copy for each fill corner whose
+/// borrowed normal is more than 60 degrees from the fill's own (one per corner at most): for the
+/// box, whose first two triangles are one whole side with 4 vertices of its own, 24 - 4 = 20,
+/// plus the 4 hole corners' copies with the lid's normal (each border corner there is a wall's,
+/// at 90 degrees): 24. The box stays the cube of side 1 (volume 1).
 #[test]
 fn corpus_textured_gltf_with_a_hole_cut_is_repaired() {
     let corpus = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/corpus/gltf_samples");
@@ -816,13 +838,20 @@ fn corpus_textured_gltf_with_a_hole_cut_is_repaired() {
                 .collect::<Vec<_>>()
         };
         assert_eq!(names(p), names(&prim), "{sample}");
-        for attribute in ["POSITION", "NORMAL", "TEXCOORD_0"] {
+        let count = |attribute: &str| {
             let a = p["attributes"][attribute].as_u64().unwrap() as usize;
-            assert_eq!(
-                after["accessors"][a]["count"],
-                json!(used.len()),
-                "{sample}: {attribute}"
-            );
+            after["accessors"][a]["count"].as_u64().unwrap() as usize
+        };
+        let vertices = count("POSITION");
+        if sample == "BoxTextured" {
+            assert_eq!(vertices, 24);
+        }
+        assert!(
+            (used.len()..=used.len() + 6).contains(&vertices),
+            "{sample}: {vertices}"
+        );
+        for attribute in ["NORMAL", "TEXCOORD_0"] {
+            assert_eq!(count(attribute), vertices, "{sample}: {attribute}");
         }
         // The texture it names is beside the copy.
         for image in doc["images"].as_array().into_iter().flatten() {
@@ -1062,4 +1091,190 @@ fn repairs_whose_rules_are_off_do_not_run() {
         degenerate["repairs"],
         "drop-degenerate-faces:1;fill-holes:1(2 faces)"
     );
+}
+
+/// The normals the corners of a copy's faces carry, each face as its corners' (position,
+/// normal), for an OBJ copy (`v`, `vn`, `f v//vn`), an ASCII PLY copy (`x y z nx ny nz` per
+/// vertex) or a GLB copy (its primitives' POSITION and NORMAL).
+fn corner_normals(path: &Path) -> Vec<Vec<([f64; 3], [f64; 3])>> {
+    let bytes = std::fs::read(path).unwrap();
+    let three = |w: &[&str]| -> [f64; 3] { std::array::from_fn(|k| w[k].parse().unwrap()) };
+    let text = String::from_utf8_lossy(&bytes);
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("obj") => {
+            let (mut v, mut vn, mut faces) = (Vec::new(), Vec::new(), Vec::new());
+            for line in text.lines() {
+                let w: Vec<&str> = line.split_whitespace().collect();
+                match w.first() {
+                    Some(&"v") => v.push(three(&w[1..])),
+                    Some(&"vn") => vn.push(three(&w[1..])),
+                    Some(&"f") => faces.push(
+                        w[1..]
+                            .iter()
+                            .map(|c| {
+                                let mut parts = c.split('/');
+                                let at = |i: Option<&str>| i.unwrap().parse::<usize>().unwrap() - 1;
+                                let p = at(parts.next());
+                                let n = at(parts.nth(1));
+                                (v[p], vn[n])
+                            })
+                            .collect(),
+                    ),
+                    _ => {}
+                }
+            }
+            faces
+        }
+        Some("ply") => {
+            let body = text.split("end_header\n").nth(1).unwrap();
+            let count = |element: &str| -> usize {
+                let line = text.lines().find(|l| l.starts_with(element)).unwrap();
+                line.split_whitespace().nth(2).unwrap().parse().unwrap()
+            };
+            let mut lines = body.lines();
+            let vertices: Vec<[[f64; 3]; 2]> = (0..count("element vertex"))
+                .map(|_| {
+                    let w: Vec<&str> = lines.next().unwrap().split_whitespace().collect();
+                    [three(&w[0..3]), three(&w[3..6])]
+                })
+                .collect();
+            (0..count("element face"))
+                .map(|_| {
+                    let w: Vec<usize> = lines
+                        .next()
+                        .unwrap()
+                        .split_whitespace()
+                        .map(|x| x.parse().unwrap())
+                        .collect();
+                    w[1..]
+                        .iter()
+                        .map(|&i| (vertices[i][0], vertices[i][1]))
+                        .collect()
+                })
+                .collect()
+        }
+        _ => {
+            let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+            let blob = gltf.blob.clone().unwrap();
+            let mut faces = Vec::new();
+            for mesh in gltf.meshes() {
+                for primitive in mesh.primitives() {
+                    let reader = primitive.reader(|_| Some(&blob[..]));
+                    let p: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+                    let n: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
+                    let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+                    for t in indices.chunks(3) {
+                        faces.push(
+                            t.iter()
+                                .map(|&i| {
+                                    let i = i as usize;
+                                    (p[i].map(f64::from), n[i].map(f64::from))
+                                })
+                                .collect(),
+                        );
+                    }
+                }
+            }
+            faces
+        }
+    }
+}
+
+/// A hole's fill gets its own normal where the one it would take from the border is far from it.
+/// A unit cube without its top, each side with its own flat normal, repaired from OBJ (a `vn` per
+/// corner), GLB and ASCII PLY (a normal per vertex, four vertices a side): the two fill triangles
+/// (the faces at z = 1) carry the lid's normal (0, 0, 1) at every corner, not the normal of the
+/// wall corner each sits on (at 90 degrees to the lid, which shaded the lid like a wall). Every
+/// other face keeps its side's normal. An octahedron with radial vertex normals and one face
+/// missing keeps them across its fill: each is 54.7 degrees from the fill's own normal
+/// (cos = 1/sqrt(3), past the 1/2 of 60 degrees), so a hole in a smooth surface stays smooth,
+/// and no normal is added.
+#[test]
+fn a_fill_across_a_crease_gets_its_own_normal() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("m");
+    std::fs::create_dir_all(&tree).unwrap();
+    // OBJ: 8 positions, the 6 side normals, 5 sides.
+    let mut obj = String::new();
+    for p in CUBE {
+        obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for n in NORMALS {
+        obj += &format!("vn {} {} {}\n", n[0], n[1], n[2]);
+    }
+    for (f, q) in QUADS.iter().enumerate().filter(|&(f, _)| f != 1) {
+        obj += "f";
+        for v in q {
+            obj += &format!(" {}//{}", v + 1, f + 1);
+        }
+        obj += "\n";
+    }
+    std::fs::write(tree.join("box.obj"), obj).unwrap();
+    let (doc, bin) = open_box_gltf();
+    std::fs::write(tree.join("box.glb"), glb(&doc, &bin)).unwrap();
+    // ASCII PLY: four vertices a side, each with its side's normal.
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 20\nproperty float x\nproperty float y\n\
+         property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         element face 5\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    let sides: Vec<(usize, &[u16; 4])> =
+        QUADS.iter().enumerate().filter(|&(f, _)| f != 1).collect();
+    for &(f, q) in &sides {
+        for &v in q {
+            let (p, n) = (CUBE[v as usize], NORMALS[f]);
+            ply += &format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2]);
+        }
+    }
+    for s in 0..sides.len() {
+        ply += &format!("4 {} {} {} {}\n", 4 * s, 4 * s + 1, 4 * s + 2, 4 * s + 3);
+    }
+    std::fs::write(tree.join("box.ply"), ply).unwrap();
+    // The octahedron: vertex k at a unit axis, its normal the same; face (+x, +y, +z) missing.
+    let octahedron = "v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n\
+                      vn 1 0 0\nvn -1 0 0\nvn 0 1 0\nvn 0 -1 0\nvn 0 0 1\nvn 0 0 -1\n\
+                      f 3//3 2//2 5//5\nf 2//2 4//4 5//5\nf 4//4 1//1 5//5\n\
+                      f 3//3 1//1 6//6\nf 2//2 3//3 6//6\nf 4//4 2//2 6//6\nf 1//1 4//4 6//6\n";
+    std::fs::write(tree.join("octahedron.obj"), octahedron).unwrap();
+
+    scan(
+        dir.path(),
+        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
+    );
+    let rows = csv_rows(&dir.path().join("r.csv"));
+    for name in ["box.obj", "box.glb", "box.ply"] {
+        let row = rows
+            .iter()
+            .find(|((path, _), _)| path == name)
+            .map(|(_, row)| row)
+            .unwrap();
+        assert!(row["repairs"].contains("fill-holes:1(2 faces)"), "{row:?}");
+        let faces = corner_normals(&dir.path().join("fixed").join(name));
+        let lid: Vec<_> = faces
+            .iter()
+            .filter(|f| f.iter().all(|(p, _)| p[2] == 1.0))
+            .collect();
+        assert_eq!(lid.len(), 2, "{name}");
+        for &(_, n) in lid.iter().copied().flatten() {
+            assert_eq!(n, [0.0, 0.0, 1.0], "{name}: a lid corner's normal");
+        }
+        // The sides keep their own normals: each face's normal is its side's.
+        for face in faces.iter().filter(|f| !f.iter().all(|(p, _)| p[2] == 1.0)) {
+            let n = face[0].1;
+            assert!(
+                NORMALS.iter().any(|s| s.map(f64::from) == n),
+                "{name}: {n:?}"
+            );
+            assert!(face.iter().all(|&(_, m)| m == n), "{name}: {face:?}");
+        }
+    }
+    let text = std::fs::read_to_string(dir.path().join("fixed/octahedron.obj")).unwrap();
+    assert_eq!(lines_with(&text, "vn").len(), 6, "{text}");
+    let faces = corner_normals(&dir.path().join("fixed/octahedron.obj"));
+    assert_eq!(faces.len(), 8);
+    for face in &faces {
+        for (p, n) in face {
+            assert_eq!(p, n, "a radial normal kept");
+        }
+    }
 }

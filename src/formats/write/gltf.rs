@@ -6,7 +6,9 @@
 //! duplicates its vertex's values), new indices (mode TRIANGLES) and keeps its material. A hole
 //! fill goes to its neighbour's primitive; a vertex it borrows from another primitive is copied
 //! with the attributes both primitives have (others zero). Normals that disagree with a flipped
-//! face are negated, with their tangent's w.
+//! face are negated, with their tangent's w. A fill's corner whose vertex's normal is far from the
+//! fill's own normal takes a copy of the vertex with the fill's normal (its tangent turned into
+//! the fill's plane).
 //!
 //! New data goes into one new buffer: appended to the BIN chunk of a GLB, or a `.bin` beside a
 //! `.gltf` copy (a `data:` URI when the source embeds all its buffers). External buffers and
@@ -29,11 +31,14 @@ use rustc_hash::FxHashMap;
 use serde_json::json;
 
 use super::names::Claims;
-use super::{normal_sums, write_atomic, Job, WriteError, Written};
+use super::{
+    borrowed_normal_fits, fill_normal, normal_sums, write_atomic, Job, WriteError, Written,
+};
 use crate::formats::gltf::accessor::{component_name, type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
 use crate::formats::gltf::container;
 use crate::formats::{read, Format, ReadContext};
+use crate::geometry::dot;
 use crate::mesh::Mesh;
 use crate::repair::Plan;
 
@@ -584,6 +589,54 @@ fn rewrite_mesh(
             })
             .unwrap_or_default();
         let mut cache: FxHashMap<usize, Values> = FxHashMap::default();
+        // A fill's corner whose vertex's normal is far from the fill's own normal gets a copy of
+        // its vertex with the fill's normal (glTF's attributes are per vertex), one per vertex and
+        // direction: `own_normals` are the copies' places in `order` with their normals, and
+        // `fill_corner` sends a fill's corner (plan triangle and corner) to its copy.
+        let mut own_normals: Vec<(usize, [f64; 3])> = Vec::new();
+        let mut fill_corner: FxHashMap<(usize, usize), u32> = FxHashMap::default();
+        if let Some((_, accessor)) = names.iter().find(|(name, _)| name == "NORMAL") {
+            let (bytes, v) = gather(
+                data,
+                model,
+                &mut cache,
+                *accessor,
+                &order,
+                k,
+                &parts,
+                &origin,
+                &pwhat,
+                |model, p| attribute_of(model, m, p, "NORMAL"),
+            )?;
+            if v.component == ComponentType::F32 && v.type_ == Type::Vec3 {
+                let mut copies: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
+                for &i in faces {
+                    let t = &plan.triangles[i];
+                    let Some(own) = fill_normal(plan, mesh, t) else {
+                        continue;
+                    };
+                    for (j, c) in t.corners.iter().enumerate() {
+                        let at = local[&c.vertex] as usize;
+                        let mut n = [0, 1, 2]
+                            .map(|d| decode(ComponentType::F32, &bytes[12 * at + 4 * d..]));
+                        if sums.get(&c.vertex).is_some_and(|sum| dot(n, *sum) < 0.0) {
+                            n = n.map(|x| -x);
+                        }
+                        if borrowed_normal_fits(n, own) {
+                            continue;
+                        }
+                        let copy = *copies
+                            .entry((c.vertex, own.map(f64::to_bits)))
+                            .or_insert_with(|| {
+                                order.push(c.vertex);
+                                own_normals.push((order.len() - 1, own));
+                                (order.len() - 1) as u32
+                            });
+                        fill_corner.insert((i, j), copy);
+                    }
+                }
+            }
+        }
         let mut negated = vec![false; order.len()];
         let mut attributes = serde_json::Map::new();
         // NORMAL before TANGENT: the tangent's w follows the normal.
@@ -632,7 +685,7 @@ fn rewrite_mesh(
                         continue;
                     };
                     let n = [0, 1, 2].map(|d| decode(ComponentType::F32, &bytes[12 * i + 4 * d..]));
-                    if crate::geometry::dot(n, *sum) < 0.0 {
+                    if dot(n, *sum) < 0.0 {
                         negated[i] = true;
                         for d in 0..3 {
                             bytes[12 * i + 4 * d..12 * i + 4 * d + 4]
@@ -641,10 +694,27 @@ fn rewrite_mesh(
                     }
                 }
             }
+            if name == "NORMAL" && v.component == ComponentType::F32 && v.type_ == Type::Vec3 {
+                for &(i, n) in &own_normals {
+                    negated[i] = false;
+                    for d in 0..3 {
+                        bytes[12 * i + 4 * d..12 * i + 4 * d + 4]
+                            .copy_from_slice(&(n[d] as f32).to_le_bytes());
+                    }
+                }
+            }
             if name == "TANGENT" && v.component == ComponentType::F32 && v.type_ == Type::Vec4 {
                 for (i, _) in negated.iter().enumerate().filter(|(_, &n)| n) {
                     let w = decode(ComponentType::F32, &bytes[16 * i + 12..]);
                     bytes[16 * i + 12..16 * i + 16].copy_from_slice(&(-w as f32).to_le_bytes());
+                }
+                // A copy's tangent turned into the plane of its new normal (its handedness kept).
+                for &(i, n) in &own_normals {
+                    let t = [0, 1, 2].map(|d| decode(ComponentType::F32, &bytes[16 * i + 4 * d..]));
+                    for d in 0..3 {
+                        bytes[16 * i + 4 * d..16 * i + 4 * d + 4]
+                            .copy_from_slice(&(tangent_across(t, n)[d] as f32).to_le_bytes());
+                    }
                 }
             }
             let index = writer.attribute(name, &bytes, &v, order.len());
@@ -698,8 +768,11 @@ fn rewrite_mesh(
         let wide = order.len() >= 65535;
         let mut index_bytes = Vec::with_capacity(faces.len() * 3 * if wide { 4 } else { 2 });
         for &i in faces {
-            for c in &plan.triangles[i].corners {
-                let v = local[&c.vertex];
+            for (j, c) in plan.triangles[i].corners.iter().enumerate() {
+                let v = fill_corner
+                    .get(&(i, j))
+                    .copied()
+                    .unwrap_or_else(|| local[&c.vertex]);
                 if wide {
                     index_bytes.extend_from_slice(&v.to_le_bytes());
                 } else {
@@ -750,6 +823,24 @@ fn rewrite_mesh(
         *primitives = kept;
     }
     Ok(())
+}
+
+/// Tangent `t` turned into the plane across unit normal `n` (its part along `n` removed), unit
+/// length; a tangent along `n` (or none) is replaced by a unit vector across `n`.
+fn tangent_across(t: [f64; 3], n: [f64; 3]) -> [f64; 3] {
+    let along = dot(t, n);
+    let across = [0, 1, 2].map(|d| t[d] - along * n[d]);
+    let length = dot(across, across).sqrt();
+    if length > 1e-6 && length.is_finite() {
+        return across.map(|x| x / length);
+    }
+    // n times the axis it is least along.
+    let least = (0..3).fold(0, |m, d| if n[d].abs() < n[m].abs() { d } else { m });
+    let mut axis = [0.0; 3];
+    axis[least] = 1.0;
+    let u = crate::geometry::cross(n, axis);
+    let length = dot(u, u).sqrt();
+    u.map(|x| x / length)
 }
 
 /// The accessor of attribute `name` of primitive `p` of mesh `m`.

@@ -7,7 +7,11 @@
 //! than the rest of the copy), then writes
 //! the copy to a temporary file in the output folder and renames it: a crash leaves no half-written
 //! copy, and the source is never opened for writing. Helpers shared by the polygon formats live
-//! here: which source polygons survive whole, vertex renumbering and the normal check.
+//! here: which source polygons survive whole, vertex renumbering and the normal checks: a normal
+//! that disagrees with a flipped face is negated, and a hole fill's corner whose normal (taken
+//! from the border corner it sits on) is more than 60 degrees from the fill's own normal gets the
+//! fill's ([`borrowed_normal_fits`]; OBJ as a new `vn`, glTF and PLY, whose normals are per
+//! vertex, with a copy of the vertex).
 
 pub(super) mod gltf;
 pub mod names;
@@ -401,6 +405,42 @@ pub(crate) fn polygon_corner(n: usize, k: usize, reversed: bool) -> usize {
 pub(crate) fn triangle_normal(plan: &Plan, mesh: &Mesh, t: &crate::repair::Triangle) -> [f64; 3] {
     let [a, b, c] = t.corners.map(|c| plan.position(mesh, c.vertex));
     crate::geometry::normal(a, b, c)
+}
+
+/// The unit normal of hole fill `t` (a triangle the plan added) at final positions, its own
+/// direction: `None` for a kept face, and for a fill whose normal has no direction or length in
+/// `f64` (a zero-area fill, or coordinates so large the cross product overflows).
+pub(crate) fn fill_normal(
+    plan: &Plan,
+    mesh: &Mesh,
+    t: &crate::repair::Triangle,
+) -> Option<[f64; 3]> {
+    if t.source.is_some() {
+        return None;
+    }
+    unit(triangle_normal(plan, mesh, t))
+}
+
+/// `v` scaled to length 1; `None` when it has no direction (zero, or not finite).
+fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
+    // Divided by its largest component first, so that squaring neither overflows nor underflows.
+    let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !(largest > 0.0 && largest.is_finite()) {
+        return None;
+    }
+    let w = v.map(|x| x / largest);
+    let length = crate::geometry::dot(w, w).sqrt();
+    // `+ 0.0` turns -0 into 0: two fills of one plane get the same normal, written once.
+    Some(w.map(|x| x / length + 0.0))
+}
+
+/// Whether a normal that a fill's corner takes from the border corner at its vertex may stay
+/// there: it is within 60 degrees of the fill's own unit normal `face`. A hole in a smooth surface
+/// keeps the surface's shading across it; a lid across a crease (a box's missing top, whose
+/// border corners hold the walls' normals, at 90 degrees to the lid) gets the fill's own normal
+/// instead, as does a corner whose normal has no direction.
+pub(crate) fn borrowed_normal_fits(borrowed: [f64; 3], face: [f64; 3]) -> bool {
+    unit(borrowed).is_some_and(|b| crate::geometry::dot(b, face) >= 0.5)
 }
 
 /// Area-weighted normals of the final faces around every vertex a flipped triangle uses, keyed

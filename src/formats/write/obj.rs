@@ -1,5 +1,6 @@
 //! Repaired OBJ: every `v` that stays (copies of split vertices appended, dropped ones left out and
-//! the rest renumbered), every `vt` and `vn` (plus negated copies of normals that disagree with a
+//! the rest renumbered), every `vt` and `vn` (plus the fills' own normals where the ones they
+//! take from the border are far from them, and negated copies of normals that disagree with a
 //! flipped face), then the faces in order with `o`/`g`/`s`/`usemtl` re-emitted where they change.
 //! A polygon that survives whole is written as the polygon (reversed when flipped); otherwise its
 //! surviving triangles are. Hole fills follow the faces of their neighbour's group and material.
@@ -22,8 +23,8 @@ use rustc_hash::FxHashMap;
 
 use super::names::Claims;
 use super::{
-    normal_sums, polygon_corner, push_int, push_number, renumber, write_atomic, Item, Job,
-    Polygons, WriteError, Written,
+    borrowed_normal_fits, fill_normal, normal_sums, polygon_corner, push_int, push_number,
+    renumber, write_atomic, Item, Job, Polygons, WriteError, Written,
 };
 use crate::formats::contain::{self, Location, Unresolved};
 use crate::formats::obj::{library, library_names, read_full, Detail, NotRead, State};
@@ -72,6 +73,49 @@ fn copy(
 
     // Normals a flipped face's corners disagree with get a negated copy.
     let sums = normal_sums(plan, mesh, |c| corner_of(c.from).1.map(|vn| (c.vertex, vn)));
+    // The normal a corner's `vn` is written as: negated where it disagrees with a flipped face.
+    let written = |vertex: u32, vn: u32| -> Option<[f64; 3]> {
+        let n = parse3(&detail.normals[vn as usize])?;
+        let negated = sums
+            .get(&(vertex, vn))
+            .is_some_and(|sum| crate::geometry::dot(n, *sum) < 0.0);
+        Some(if negated { n.map(|x| -x) } else { n })
+    };
+    // A fill's corner whose borrowed normal is far from the fill's own normal gets the fill's:
+    // the file's own `vn` of exactly that value, else one new `vn` per direction after the file's
+    // own (plan triangle and corner -> `vn`).
+    let mut fill_normals: Vec<[f64; 3]> = Vec::new();
+    let mut fill_vn: FxHashMap<(usize, usize), u32> = FxHashMap::default();
+    let mut by_direction: FxHashMap<[u64; 3], u32> = FxHashMap::default();
+    if plan.triangles.iter().any(|t| t.source.is_none()) {
+        for (i, text) in detail.normals.iter().enumerate().rev() {
+            if let Some(n) = parse3(text) {
+                by_direction.insert(n.map(|x| (x + 0.0).to_bits()), i as u32);
+            }
+        }
+    }
+    for (i, t) in plan.triangles.iter().enumerate() {
+        let Some(own) = fill_normal(plan, mesh, t) else {
+            continue;
+        };
+        for (k, c) in t.corners.iter().enumerate() {
+            let Some(vn) = corner_of(c.from).1 else {
+                continue;
+            };
+            if written(c.vertex, vn).is_some_and(|b| borrowed_normal_fits(b, own)) {
+                continue;
+            }
+            let index = *by_direction
+                .entry(own.map(f64::to_bits))
+                .or_insert_with(|| {
+                    fill_normals.push(own);
+                    (detail.normals.len() + fill_normals.len() - 1) as u32
+                });
+            fill_vn.insert((i, k), index);
+        }
+    }
+    let first_extra = detail.normals.len() + fill_normals.len();
+
     let mut extra_normals: Vec<String> = Vec::new();
     let mut negated: rustc_hash::FxHashMap<u32, u32> = Default::default();
     let mut flip_normal = |vertex: u32, vn: u32| -> u32 {
@@ -91,7 +135,7 @@ fn copy(
                 super::number(-n[1]),
                 super::number(-n[2])
             ));
-            (detail.normals.len() + extra_normals.len() - 1) as u32
+            (first_extra + extra_normals.len() - 1) as u32
         })
     };
 
@@ -119,7 +163,10 @@ fn copy(
     let mut faces = String::with_capacity(16 * ordered.len());
     let mut state = State::default();
     // Indices as 1-based text (itoa: `write!` costs several times more over a million faces).
-    let mut corner_text = |faces: &mut String, v: u32, vt: Option<u32>, vn: Option<u32>| {
+    // `vn` is the source's normal (negated here where it disagrees with a flipped face) or, with
+    // `fill`, the index of a fill's own normal.
+    let mut corner_text = |faces: &mut String, v: u32, vt: Option<u32>, vn: Option<u32>, fill| {
+        let mut normal = |n: u32| if fill { n } else { flip_normal(v, n) };
         faces.push(' ');
         push_int(faces, u64::from(index[v as usize]) + 1);
         match (vt, vn) {
@@ -130,13 +177,13 @@ fn copy(
             }
             (None, Some(n)) => {
                 faces.push_str("//");
-                push_int(faces, u64::from(flip_normal(v, n)) + 1);
+                push_int(faces, u64::from(normal(n)) + 1);
             }
             (Some(t), Some(n)) => {
                 faces.push('/');
                 push_int(faces, u64::from(t) + 1);
                 faces.push('/');
-                push_int(faces, u64::from(flip_normal(v, n)) + 1);
+                push_int(faces, u64::from(normal(n)) + 1);
             }
         }
     };
@@ -153,13 +200,16 @@ fn copy(
                 let n = corners.len();
                 for k in 0..n {
                     let (v, vt, vn) = corners[polygon_corner(n, k, reversed)].parts();
-                    corner_text(&mut faces, v, vt, vn);
+                    corner_text(&mut faces, v, vt, vn, false);
                 }
             }
             Item::Triangle(i) => {
-                for c in &plan.triangles[i].corners {
+                for (k, c) in plan.triangles[i].corners.iter().enumerate() {
                     let (vt, vn) = corner_of(c.from);
-                    corner_text(&mut faces, c.vertex, vt, vn);
+                    match fill_vn.get(&(i, k)) {
+                        Some(&own) => corner_text(&mut faces, c.vertex, vt, Some(own), true),
+                        None => corner_text(&mut faces, c.vertex, vt, vn, false),
+                    }
                 }
             }
         }
@@ -198,7 +248,18 @@ fn copy(
     for vt in &detail.texcoords {
         let _ = writeln!(text, "vt {vt}");
     }
-    for vn in detail.normals.iter().chain(&extra_normals) {
+    for vn in &detail.normals {
+        let _ = writeln!(text, "vn {vn}");
+    }
+    for n in &fill_normals {
+        text.push_str("vn");
+        for x in n {
+            text.push(' ');
+            push_number(&mut text, *x);
+        }
+        text.push('\n');
+    }
+    for vn in &extra_normals {
         let _ = writeln!(text, "vn {vn}");
     }
     text.push_str(&faces);

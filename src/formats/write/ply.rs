@@ -4,7 +4,8 @@
 //! hole fill takes its neighbour's; per-corner face lists (`texcoord` with 2 values a corner)
 //! follow their corners (a fill's corner taken from a face without such a list gets the values of
 //! its own face's corner at the same vertex, else zeros, so every record keeps its length). Normals
-//! (`nx ny nz`) that disagree with a flipped face are negated. A face index list whose item type
+//! (`nx ny nz`) that disagree with a flipped face are negated; a fill's corner whose vertex's
+//! normal is far from the fill's own takes a copy of the vertex with the fill's normal. A face index list whose item type
 //! cannot hold the copy's largest vertex number (a `uchar` list once a split numbers a vertex
 //! copy 256) is declared with the smallest wider type of its kind, with a note; numbers are never
 //! wrapped or cut.
@@ -22,8 +23,11 @@ use std::path::Path;
 
 use ply_rs_bw::ply::{ElementDef, Encoding, PropertyType, ScalarType};
 
+use rustc_hash::FxHashMap;
+
 use super::{
-    normal_sums, polygon_corner, renumber, write_atomic, Item, Job, Polygons, WriteError, Written,
+    borrowed_normal_fits, fill_normal, normal_sums, polygon_corner, renumber, write_atomic, Item,
+    Job, Polygons, WriteError, Written,
 };
 use crate::formats::ply::{header, next_line, scalar, scalar_size};
 use crate::mesh::Mesh;
@@ -83,6 +87,9 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     let items = polygons.items(plan, mesh);
     let (index, kept) = renumber(plan);
     let mut notes = Vec::new();
+    let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
+    let sums = normal_sums(plan, mesh, |c| Some(c.vertex));
+    let copies = OwnNormals::new(&elements, plan, mesh, &sums, kept);
 
     // The face element as the copy declares it: its index list's item type widened when the
     // copy's vertex numbers do not fit it (a split's copies numbered past 255 in a `uchar` list).
@@ -99,7 +106,8 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                     .flat_map(|t| &t.corners)
                     .map(|c| index[c.vertex as usize])
                     .max()
-                    .unwrap_or(0);
+                    .unwrap_or(0)
+                    .max((kept + copies.normals.len()).saturating_sub(1) as u32);
                 if let Some(wide) = wider(item, top) {
                     notes.push(format!(
                         "the PLY face list `{key}` is {} in the copy instead of {}: the repair \
@@ -114,9 +122,6 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
             }
         }
     }
-
-    let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
-    let sums = normal_sums(plan, mesh, |c| Some(c.vertex));
 
     let mut body = Body::new(header.encoding);
     // Each element's new count; `None`: left out of the copy.
@@ -162,7 +167,20 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                     }
                     body.record(&e.def, &record);
                 }
-                counts.push((e.def.name.clone(), Some(kept)));
+                // The copies of vertices that fills' corners take with the fills' own normals.
+                for &(v, n) in &copies.normals {
+                    let from = super::original(plan, mesh, v) as usize;
+                    let mut record = e.record(from).to_vec();
+                    let p = plan.position(mesh, v);
+                    for (k, slot) in xyz.iter().chain(&normal).enumerate() {
+                        if let Some(s) = slot {
+                            let at = scalar_at(e, &record, *s);
+                            record[at] = if k < 3 { p[k] } else { n[k - 3] };
+                        }
+                    }
+                    body.record(&e.def, &record);
+                }
+                counts.push((e.def.name.clone(), Some(kept + copies.normals.len())));
             }
             "face" => {
                 let def = face_def.as_ref().unwrap_or(&e.def);
@@ -194,8 +212,20 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                         .iter()
                         .map(|&v| super::original(plan, mesh, v))
                         .collect();
+                    // The copy's vertex numbers: a fill's corner may take a vertex copy.
+                    let numbers: Vec<u32> = vertices
+                        .iter()
+                        .enumerate()
+                        .map(|(j, &v)| {
+                            let copy = match *item {
+                                Item::Triangle(i) => copies.corners.get(&(i, j)).copied(),
+                                Item::Polygon { .. } => None,
+                            };
+                            copy.unwrap_or(index[v as usize])
+                        })
+                        .collect();
                     let record = face_record(
-                        e, face, slot, &corners, &vertices, &origins, &index, item, plan, &polygons,
+                        e, face, slot, &corners, &numbers, &origins, item, plan, &polygons,
                     );
                     body.record(def, &record);
                 }
@@ -260,6 +290,70 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     out_bytes.extend_from_slice(&body.bytes);
     write_atomic(out, &out_bytes)?;
     Ok(notes)
+}
+
+/// The vertex copies hole fills take for their own normals: a fill's corner whose vertex's normal
+/// (`nx ny nz`, as the copy writes it) is far from the fill's own normal
+/// ([`borrowed_normal_fits`]) takes a copy of its vertex with the fill's normal instead (a PLY
+/// vertex has one normal), one copy per vertex and direction, numbered after the kept vertices.
+struct OwnNormals {
+    /// Each copy's plan vertex and normal, in number order.
+    normals: Vec<(u32, [f64; 3])>,
+    /// A fill's corner (plan triangle and corner) -> its copy's number.
+    corners: FxHashMap<(usize, usize), u32>,
+}
+
+impl OwnNormals {
+    fn new(
+        elements: &[Element],
+        plan: &Plan,
+        mesh: &Mesh,
+        sums: &FxHashMap<u32, [f64; 3]>,
+        kept: usize,
+    ) -> OwnNormals {
+        let mut own = OwnNormals {
+            normals: Vec::new(),
+            corners: FxHashMap::default(),
+        };
+        let Some(e) = elements.iter().find(|e| e.def.name == "vertex") else {
+            return own;
+        };
+        let keys = e.def.properties.keys();
+        let Some(slots) = ["nx", "ny", "nz"]
+            .map(|k| keys.clone().position(|p| p == k))
+            .into_iter()
+            .collect::<Option<Vec<usize>>>()
+        else {
+            return own;
+        };
+        let mut numbers: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
+        for (i, t) in plan.triangles.iter().enumerate() {
+            let Some(face) = fill_normal(plan, mesh, t) else {
+                continue;
+            };
+            for (j, c) in t.corners.iter().enumerate() {
+                let record = e.record(super::original(plan, mesh, c.vertex) as usize);
+                let mut n = [0, 1, 2].map(|k| record[scalar_at(e, record, slots[k])]);
+                if sums
+                    .get(&c.vertex)
+                    .is_some_and(|sum| crate::geometry::dot(n, *sum) < 0.0)
+                {
+                    n = n.map(|x| -x);
+                }
+                if borrowed_normal_fits(n, face) {
+                    continue;
+                }
+                let number = *numbers
+                    .entry((c.vertex, face.map(f64::to_bits)))
+                    .or_insert_with(|| {
+                        own.normals.push((c.vertex, face));
+                        (kept + own.normals.len() - 1) as u32
+                    });
+                own.corners.insert((i, j), number);
+            }
+        }
+        own
+    }
 }
 
 /// How an element other than `vertex` and `face` refers to vertices.
@@ -327,9 +421,8 @@ fn face_record(
     face: usize,
     slot: usize,
     corners: &[usize],
-    vertices: &[u32],
+    numbers: &[u32],
     origins: &[u32],
-    index: &[u32],
     item: &Item,
     plan: &Plan,
     polygons: &Polygons,
@@ -350,8 +443,8 @@ fn face_record(
                 let items = &source[at + 1..at + 1 + len];
                 at += 1 + len;
                 if k == slot {
-                    out.push(vertices.len() as f64);
-                    out.extend(vertices.iter().map(|&v| index[v as usize] as f64));
+                    out.push(numbers.len() as f64);
+                    out.extend(numbers.iter().map(|&v| f64::from(v)));
                 } else if n_source > 0 && len > 0 && len.is_multiple_of(n_source) {
                     // Per-corner values: each output corner takes its own corner's values (a
                     // fill's corner, those of the neighbour face it came from). Exactly `stride`
