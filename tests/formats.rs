@@ -608,6 +608,66 @@ fn ply_element_without_properties_and_a_huge_count_does_not_hang() {
     }
 }
 
+/// The peak resident memory of this process so far (`VmHWM`), in bytes.
+#[cfg(target_os = "linux")]
+fn peak_resident() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
+    let kb: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    kb << 10
+}
+
+/// A binary STL whose header cannot start an ASCII file (no `solid`) is judged by its header and
+/// its size alone: a 1.9 GB file (sparse, so it takes no disk) whose header declares 0 triangles
+/// is refused as an unfilled count, with room for (1.9e9 - 84) / 50 = 37,999,998 facets, and one
+/// declaring 2 triangles before the same padding is read with its note, both without holding the
+/// file: the process's peak resident memory grows by far less than the file. Both were read
+/// whole to be judged, 1.9 GB each.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_huge_binary_stl_is_judged_without_reading_it_whole() {
+    const SIZE: u64 = 1_900_000_000;
+    let dir = tempfile::tempdir().unwrap();
+    let t = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let write = |name: &str, triangles: u32| {
+        let path = dir.path().join(name);
+        let mut bytes = vec![b'x'; 80];
+        bytes.extend(triangles.to_le_bytes());
+        for _ in 0..triangles {
+            bytes.extend([0u8; 12]);
+            bytes.extend(t.iter().flatten().flat_map(|x| x.to_le_bytes()));
+            bytes.extend([0u8; 2]);
+        }
+        std::fs::write(&path, bytes).unwrap();
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_len(SIZE)
+            .unwrap();
+        path
+    };
+    let (unfilled, padded) = (write("unfilled.stl", 0), write("padded.stl", 2));
+    let before = peak_resident();
+    let e = load_path(&unfilled, dir.path()).unwrap_err().0;
+    assert!(
+        e.contains("declares 0 triangles, but the file has room for 37999998 facets"),
+        "{e}"
+    );
+    let m = load_path(&padded, dir.path()).unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+    let extra = SIZE - 84 - 100;
+    assert!(
+        m.notes
+            .join("\n")
+            .contains(&format!("{extra} byte(s) after the 2 triangles")),
+        "{:?}",
+        m.notes
+    );
+    let grown = peak_resident() - before;
+    assert!(grown < 500 << 20, "peak memory grew by {grown} bytes");
+}
+
 #[test]
 fn stl_binary_with_trailing_bytes_is_read_with_a_note() {
     let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];

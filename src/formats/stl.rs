@@ -30,6 +30,16 @@ pub fn read(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
         if HEADER as u64 + FACET as u64 * n == size {
             return read_binary(&mut file, n, cx).map(|m| vec![m]);
         }
+        // A file that cannot be ASCII is judged by its header and size alone: a padded file's
+        // facets are read in chunks as an exact one's are, and a wrong size is refused without
+        // reading the rest (a 2 GB file of zeros was read whole to be refused).
+        if !could_be_ascii(&header) {
+            if let Layout::Binary { facets, extra } = layout_of(&header, size)? {
+                let mut mesh = read_binary(&mut file, facets, cx)?;
+                mesh.notes.push(padding_note(facets, extra));
+                return Ok(vec![mesh]);
+            }
+        }
     }
     file.rewind()?;
     let mut bytes = Vec::new();
@@ -61,21 +71,30 @@ fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
         Layout::Binary { facets: n, extra } => {
             let end = bytes.len() - extra;
             let mut mesh = parse_binary(&bytes[..end], n, cx)?;
-            let more = extra / FACET;
-            let hint = if more > 0 {
-                format!(
-                    " (room for {more} more facet(s): if the model looks incomplete, the header's \
-                     triangle count is wrong - re-export the file)"
-                )
-            } else {
-                String::new()
-            };
-            mesh.notes.push(format!(
-                "{extra} byte(s) after the {n} triangles the binary header declares were ignored{hint}"
-            ));
+            mesh.notes.push(padding_note(n, extra));
             Ok(mesh)
         }
     }
+}
+
+/// The note on `extra` bytes ignored after the `n` facets a binary header declares.
+fn padding_note(n: u64, extra: usize) -> String {
+    let more = extra / FACET;
+    let hint = if more > 0 {
+        format!(
+            " (room for {more} more facet(s): if the model looks incomplete, the header's \
+             triangle count is wrong - re-export the file)"
+        )
+    } else {
+        String::new()
+    };
+    format!("{extra} byte(s) after the {n} triangles the binary header declares were ignored{hint}")
+}
+
+/// Whether a file whose first bytes are `header` may be ASCII STL: it starts with `solid` after
+/// any blanks, or it is all blanks so far.
+fn could_be_ascii(header: &[u8]) -> bool {
+    starts_with_solid(header) || header.iter().all(u8::is_ascii_whitespace)
 }
 
 /// How [`parse`] reads a file's bytes; the writer of repaired copies decides by the same rule, so
@@ -93,12 +112,19 @@ pub(crate) enum Layout {
 
 /// How `bytes` are read, or why they cannot be: the detection the module comment describes.
 pub(crate) fn layout(bytes: &[u8]) -> Result<Layout, ReadError> {
-    if bytes.is_empty() {
+    layout_of(bytes, bytes.len() as u64)
+}
+
+/// [`layout`] of a file of `size` bytes that starts with `bytes`: the whole file, or its first
+/// bytes when they show it cannot be ASCII ([`could_be_ascii`]), as the rest is then only
+/// counted.
+fn layout_of(bytes: &[u8], size: u64) -> Result<Layout, ReadError> {
+    if size == 0 {
         return Ok(Layout::Empty);
     }
     let declared = bytes.first_chunk::<HEADER>().map(declared);
     if let Some(n) = declared {
-        if HEADER as u64 + FACET as u64 * n == bytes.len() as u64 {
+        if HEADER as u64 + FACET as u64 * n == size {
             return Ok(Layout::Binary {
                 facets: n,
                 extra: 0,
@@ -118,36 +144,36 @@ pub(crate) fn layout(bytes: &[u8]) -> Result<Layout, ReadError> {
     }
     match declared {
         _ if other == Some(Binary::Utf16)
-            && declared.is_none_or(|n| HEADER as u64 + FACET as u64 * n > bytes.len() as u64) =>
+            && declared.is_none_or(|n| HEADER as u64 + FACET as u64 * n > size) =>
         {
             Err(Binary::Utf16.error("STL"))
         }
         None => Err(ReadError::new(format!(
-            "not an STL file: {} bytes, too short for a binary STL (at least 84 bytes) and it does \
-             not start with `solid` - re-export the file",
-            bytes.len()
+            "not an STL file: {size} bytes, too short for a binary STL (at least 84 bytes) and it \
+             does not start with `solid` - re-export the file"
         ))),
         // No facets declared but room for some: a streaming exporter never filled the count in.
         // Reading none would make a full file an `empty` row; guessing the count is not ours.
-        Some(0) if bytes.len() >= HEADER + FACET => Err(ReadError::new(format!(
+        Some(0) if size >= (HEADER + FACET) as u64 => Err(ReadError::new(format!(
             "binary STL header declares 0 triangles, but the file has room for {} facets after \
              it - the exporter did not fill in the triangle count: re-export the file",
-            (bytes.len() - HEADER) / FACET
+            (size - HEADER as u64) / FACET as u64
         ))),
-        Some(n) if HEADER as u64 + FACET as u64 * n < bytes.len() as u64 => {
-            let end = HEADER + FACET * n as usize; // < bytes.len(), so it fits
+        Some(n) if HEADER as u64 + FACET as u64 * n < size => {
+            let end = HEADER as u64 + FACET as u64 * n;
             Ok(Layout::Binary {
                 facets: n,
-                extra: bytes.len() - end,
+                // At most the file's size, which the read limit keeps within memory.
+                extra: usize::try_from(size - end).unwrap_or(usize::MAX),
             })
         }
         Some(n) => {
-            let held = (bytes.len() - HEADER) / FACET;
+            let held = (size - HEADER as u64) / FACET as u64;
             Err(ReadError::new(format!(
                 "truncated binary STL: header declares {n} triangles ({} bytes), file holds {held} \
                  ({} bytes) - re-export the file",
                 HEADER as u64 + FACET as u64 * n,
-                bytes.len()
+                size
             )))
         }
     }
@@ -185,7 +211,7 @@ fn parse_binary(bytes: &[u8], n: u64, cx: &ReadContext) -> Result<Mesh, ReadErro
 /// Facets read from a file per call: about 64 KB, in cache while they are decoded.
 const CHUNK: usize = 1310;
 
-/// The `n` facets of a binary file of exactly `84 + 50 n` bytes, read from `file` (past the
+/// The `n` facets of a binary file of at least `84 + 50 n` bytes, read from `file` (past the
 /// header) a chunk at a time.
 fn read_binary(file: &mut std::fs::File, n: u64, cx: &ReadContext) -> Result<Mesh, ReadError> {
     let n = checked(n, cx)?;
