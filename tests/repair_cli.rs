@@ -296,36 +296,78 @@ element face 5\nproperty list uchar int vertex_indices\nend_header\n"
 /// with its top side missing (20 vertices, 10 triangles: one hole of 4 edges) and the first
 /// triangle of the bottom stored backwards. Returns the document and its binary buffer.
 fn open_box_gltf() -> (Value, Vec<u8>) {
+    open_box_gltf_with(&|p| p, false)
+}
+
+/// [`open_box_gltf`] with every position and normal turned by `turn`; with `tangents`, a
+/// TANGENT per vertex (its side's normal two sides on, w = 1), a UV of its own per vertex
+/// (`(i / 32, 0)` for vertex `i`), and the +x side stored inward (winding and normal).
+fn open_box_gltf_with(turn: &dyn Fn([f32; 3]) -> [f32; 3], tangents: bool) -> (Value, Vec<u8>) {
     let (mut idx, mut pos, mut nor, mut uv) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut tan = Vec::new();
     let mut n = 0u16;
     for (f, q) in QUADS.iter().enumerate() {
         if f == 1 {
             continue;
         }
+        let inward = tangents && f == 5;
         for (k, &v) in q.iter().enumerate() {
-            pos.extend(CUBE[v as usize]);
-            nor.extend(NORMALS[f]);
-            uv.extend([(k == 1 || k == 2) as u8 as f32, (k >= 2) as u8 as f32]);
+            pos.extend(turn(CUBE[v as usize]));
+            let normal = NORMALS[f].map(|x| if inward { -x } else { x });
+            nor.extend(turn(normal));
+            if tangents {
+                uv.extend([f32::from(n + k as u16) / 32.0, 0.0]);
+                tan.extend(turn(NORMALS[(f + 2) % 6]));
+                tan.push(1.0);
+            } else {
+                uv.extend([(k == 1 || k == 2) as u8 as f32, (k >= 2) as u8 as f32]);
+            }
         }
-        idx.extend([n, n + 1, n + 2, n, n + 2, n + 3]);
+        if inward {
+            idx.extend([n, n + 2, n + 1, n, n + 3, n + 2]);
+        } else {
+            idx.extend([n, n + 1, n + 2, n, n + 2, n + 3]);
+        }
         n += 4;
     }
     idx.swap(1, 2);
     let mut bin = Vec::new();
     let mut views = Vec::new();
-    for data in [
+    let mut data = vec![
         idx.iter()
             .flat_map(|x| x.to_le_bytes())
             .collect::<Vec<u8>>(),
         pos.iter().flat_map(|x| x.to_le_bytes()).collect(),
         nor.iter().flat_map(|x| x.to_le_bytes()).collect(),
         uv.iter().flat_map(|x| x.to_le_bytes()).collect(),
-    ] {
+    ];
+    if tangents {
+        data.push(tan.iter().flat_map(|x| x.to_le_bytes()).collect());
+    }
+    for data in data {
         while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": data.len()}));
         bin.extend(data);
+    }
+    let bound = |pick: fn(f32, f32) -> f32| -> Vec<f32> {
+        (0..3)
+            .map(|d| pos.iter().skip(d).step_by(3).copied().reduce(pick).unwrap())
+            .collect()
+    };
+    let mut attributes = json!({"POSITION": 1, "NORMAL": 2, "TEXCOORD_0": 3});
+    let mut accessors = vec![
+        json!({"bufferView": 0, "componentType": 5123, "count": idx.len(), "type": "SCALAR"}),
+        json!({"bufferView": 1, "componentType": 5126, "count": 20, "type": "VEC3",
+               "min": bound(f32::min), "max": bound(f32::max)}),
+        json!({"bufferView": 2, "componentType": 5126, "count": 20, "type": "VEC3"}),
+        json!({"bufferView": 3, "componentType": 5126, "count": 20, "type": "VEC2"}),
+    ];
+    if tangents {
+        attributes["TANGENT"] = json!(4);
+        accessors
+            .push(json!({"bufferView": 4, "componentType": 5126, "count": 20, "type": "VEC4"}));
     }
     let doc = json!({
         "asset": {"version": "2.0", "generator": "meshvet test"},
@@ -334,15 +376,9 @@ fn open_box_gltf() -> (Value, Vec<u8>) {
         "nodes": [{"mesh": 0, "name": "box"}],
         "materials": [{"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.2, 1.0]}}],
         "meshes": [{"name": "box", "primitives": [{
-            "attributes": {"POSITION": 1, "NORMAL": 2, "TEXCOORD_0": 3},
+            "attributes": attributes,
             "indices": 0, "material": 0, "mode": 4}]}],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5123, "count": idx.len(), "type": "SCALAR"},
-            {"bufferView": 1, "componentType": 5126, "count": 20, "type": "VEC3",
-             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 1.0]},
-            {"bufferView": 2, "componentType": 5126, "count": 20, "type": "VEC3"},
-            {"bufferView": 3, "componentType": 5126, "count": 20, "type": "VEC2"}
-        ],
+        "accessors": accessors,
         "bufferViews": views,
         "buffers": [{"byteLength": bin.len()}]
     });
@@ -1277,4 +1313,137 @@ fn a_fill_across_a_crease_gets_its_own_normal() {
             assert_eq!(p, n, "a radial normal kept");
         }
     }
+}
+
+/// A tilted box gets one normal for its hole: the open box of
+/// [`a_fill_across_a_crease_gets_its_own_normal`] turned 0.3 rad about z and then 0.7 rad about
+/// x (so no coordinate is exact), as OBJ, ASCII PLY and GLB. The fill's two triangles close one
+/// hole and get one normal, the hole's, within 1e-5 of the turned (0, 0, 1): every lid corner
+/// carries the very same value, the OBJ copy has 6 + 1 `vn`, the PLY and GLB copies 20 + 4
+/// vertices (a copy for each hole corner). Each fill triangle took its own rounded cross product
+/// before, two `vn` and 26 vertices, a seam along the lid's diagonal.
+#[test]
+fn a_tilted_hole_gets_one_normal() {
+    let (a, b) = (0.3f64, 0.7f64);
+    let turn = move |p: [f32; 3]| -> [f32; 3] {
+        let [x, y, z] = p.map(f64::from);
+        let (x, y) = (x * a.cos() - y * a.sin(), x * a.sin() + y * a.cos());
+        let (y, z) = (y * b.cos() - z * b.sin(), y * b.sin() + z * b.cos());
+        [x as f32, y as f32, z as f32]
+    };
+    let up = turn([0.0, 0.0, 1.0]).map(f64::from);
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("m");
+    std::fs::create_dir_all(&tree).unwrap();
+    let sides: Vec<(usize, &[u16; 4])> =
+        QUADS.iter().enumerate().filter(|&(f, _)| f != 1).collect();
+    let mut obj = String::new();
+    for p in CUBE.map(turn) {
+        obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+    }
+    for n in NORMALS.map(turn) {
+        obj += &format!("vn {} {} {}\n", n[0], n[1], n[2]);
+    }
+    for &(f, q) in &sides {
+        obj += "f";
+        for v in q {
+            obj += &format!(" {}//{}", v + 1, f + 1);
+        }
+        obj += "\n";
+    }
+    std::fs::write(tree.join("box.obj"), obj).unwrap();
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 20\nproperty float x\nproperty float y\n\
+         property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         element face 5\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for &(f, q) in &sides {
+        for &v in q {
+            let (p, n) = (turn(CUBE[v as usize]), turn(NORMALS[f]));
+            ply += &format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], n[0], n[1], n[2]);
+        }
+    }
+    for s in 0..sides.len() {
+        ply += &format!("4 {} {} {} {}\n", 4 * s, 4 * s + 1, 4 * s + 2, 4 * s + 3);
+    }
+    std::fs::write(tree.join("box.ply"), ply).unwrap();
+    let (doc, bin) = open_box_gltf_with(&turn, false);
+    std::fs::write(tree.join("box.glb"), glb(&doc, &bin)).unwrap();
+
+    scan(
+        dir.path(),
+        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
+    );
+    let fixed = dir.path().join("fixed");
+    for name in ["box.obj", "box.ply", "box.glb"] {
+        let faces = corner_normals(&fixed.join(name));
+        let dot = |p: [f64; 3]| p[0] * up[0] + p[1] * up[1] + p[2] * up[2];
+        let lid: Vec<[f64; 3]> = faces
+            .iter()
+            .filter(|f| f.iter().all(|&(p, _)| (dot(p) - 1.0).abs() < 1e-5))
+            .flatten()
+            .map(|&(_, n)| n)
+            .collect();
+        assert_eq!(lid.len(), 6, "{name}");
+        assert!(lid.iter().all(|&n| n == lid[0]), "{name}: {lid:?}");
+        assert!((dot(lid[0]) - 1.0).abs() < 1e-5, "{name}: {:?}", lid[0]);
+    }
+    let text = std::fs::read_to_string(fixed.join("box.obj")).unwrap();
+    assert_eq!(lines_with(&text, "vn").len(), 7, "{text}");
+    let text = std::fs::read_to_string(fixed.join("box.ply")).unwrap();
+    assert!(text.contains("element vertex 24\n"), "{text}");
+    let doc = document(&std::fs::read(fixed.join("box.glb")).unwrap());
+    let prim = &doc["meshes"][0]["primitives"][0];
+    let position = prim["attributes"]["POSITION"].as_u64().unwrap() as usize;
+    assert_eq!(doc["accessors"][position]["count"], json!(24));
+}
+
+/// A vertex copy with a fill's own normal keeps the tangent handedness its vertex is written
+/// with. The open glTF box with tangents (w = 1), a UV of its own per vertex, and its +x side
+/// stored inward: the repair turns that side, negating its normals to (1, 0, 0) and its tangents'
+/// w to -1. The hole's four border edges are the four walls' top edges, one each, so one hole
+/// corner takes its attributes from a +x wall vertex: its copy (normal (0, 0, 1), the same UV)
+/// must have w = -1 too, as every copy has its vertex's w; and each copy's tangent lies in the
+/// lid's plane, unit length. The copy had the source's w = 1 before.
+#[test]
+fn a_copy_with_a_fill_normal_keeps_its_vertex_tangent_handedness() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("m");
+    std::fs::create_dir_all(&tree).unwrap();
+    let (doc, bin) = open_box_gltf_with(&|p| p, true);
+    std::fs::write(tree.join("box.glb"), glb(&doc, &bin)).unwrap();
+    scan(
+        dir.path(),
+        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
+    );
+    let bytes = std::fs::read(dir.path().join("fixed/box.glb")).unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|_| Some(&blob[..]));
+    let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
+    let tangents: Vec<[f32; 4]> = reader.read_tangents().unwrap().collect();
+    let uvs: Vec<[f32; 2]> = reader.read_tex_coords(0).unwrap().into_f32().collect();
+    assert_eq!(normals.len(), 24);
+    let copies: Vec<usize> = (0..24).filter(|&i| normals[i] == [0.0, 0.0, 1.0]).collect();
+    assert_eq!(copies.len(), 4);
+    let mut from_x_wall = 0;
+    for &c in &copies {
+        let origin = (0..24)
+            .find(|&i| !copies.contains(&i) && uvs[i] == uvs[c])
+            .unwrap();
+        assert_eq!(tangents[c][3], tangents[origin][3], "copy {c} of {origin}");
+        if normals[origin] == [1.0, 0.0, 0.0] {
+            assert_eq!(tangents[origin][3], -1.0);
+            from_x_wall += 1;
+        }
+        let [x, y, z, _] = tangents[c];
+        assert_eq!(z, 0.0, "{:?}", tangents[c]);
+        assert!(
+            ((x * x + y * y).sqrt() - 1.0).abs() < 1e-6,
+            "{:?}",
+            tangents[c]
+        );
+    }
+    assert_eq!(from_x_wall, 1);
 }

@@ -32,7 +32,7 @@ use serde_json::json;
 
 use super::names::Claims;
 use super::{
-    borrowed_normal_fits, fill_normal, normal_sums, write_atomic, Job, WriteError, Written,
+    borrowed_normal_fits, fill_normals, normal_sums, write_atomic, Job, WriteError, Written,
 };
 use crate::formats::gltf::accessor::{component_name, type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
@@ -543,6 +543,7 @@ fn rewrite_mesh(
         }
     }
     let sums = normal_sums(plan, mesh, |c| Some(c.vertex));
+    let holes = fill_normals(plan, mesh);
 
     let mut empty = Vec::new();
     for (k, part) in parts.iter().enumerate() {
@@ -612,7 +613,7 @@ fn rewrite_mesh(
                 let mut copies: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
                 for &i in faces {
                     let t = &plan.triangles[i];
-                    let Some(own) = fill_normal(plan, mesh, t) else {
+                    let Some(own) = holes[i] else {
                         continue;
                     };
                     for (j, c) in t.corners.iter().enumerate() {
@@ -696,7 +697,6 @@ fn rewrite_mesh(
             }
             if name == "NORMAL" && v.component == ComponentType::F32 && v.type_ == Type::Vec3 {
                 for &(i, n) in &own_normals {
-                    negated[i] = false;
                     for d in 0..3 {
                         bytes[12 * i + 4 * d..12 * i + 4 * d + 4]
                             .copy_from_slice(&(n[d] as f32).to_le_bytes());
@@ -708,7 +708,8 @@ fn rewrite_mesh(
                     let w = decode(ComponentType::F32, &bytes[16 * i + 12..]);
                     bytes[16 * i + 12..16 * i + 16].copy_from_slice(&(-w as f32).to_le_bytes());
                 }
-                // A copy's tangent turned into the plane of its new normal (its handedness kept).
+                // A copy's tangent turned into the plane of its new normal, its handedness (w)
+                // as its vertex's is written.
                 for &(i, n) in &own_normals {
                     let t = [0, 1, 2].map(|d| decode(ComponentType::F32, &bytes[16 * i + 4 * d..]));
                     for d in 0..3 {
@@ -755,6 +756,15 @@ fn rewrite_mesh(
                                 bytes[12 * i + 4 * d..12 * i + 4 * d + 4]
                                     .copy_from_slice(&(-x as f32).to_le_bytes());
                             }
+                        }
+                    }
+                    // A copy with a fill's own normal does not bend with its vertex's morphs.
+                    if (name == "NORMAL" || name == "TANGENT")
+                        && v.component == ComponentType::F32
+                        && v.type_ == Type::Vec3
+                    {
+                        for &(i, _) in &own_normals {
+                            bytes[12 * i..12 * i + 12].fill(0);
                         }
                     }
                     let index = writer.attribute(name, &bytes, &v, order.len());

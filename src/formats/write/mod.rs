@@ -9,9 +9,9 @@
 //! copy, and the source is never opened for writing. Helpers shared by the polygon formats live
 //! here: which source polygons survive whole, vertex renumbering and the normal checks: a normal
 //! that disagrees with a flipped face is negated, and a hole fill's corner whose normal (taken
-//! from the border corner it sits on) is more than 60 degrees from the fill's own normal gets the
-//! fill's ([`borrowed_normal_fits`]; OBJ as a new `vn`, glTF and PLY, whose normals are per
-//! vertex, with a copy of the vertex).
+//! from the border corner it sits on) is more than 60 degrees from its hole's normal
+//! (`fill_normals`) gets that normal (`borrowed_normal_fits`; OBJ as the file's `vn` of that
+//! value or a new one, glTF and PLY, whose normals are per vertex, with a copy of the vertex).
 
 pub(super) mod gltf;
 pub mod names;
@@ -407,18 +407,45 @@ pub(crate) fn triangle_normal(plan: &Plan, mesh: &Mesh, t: &crate::repair::Trian
     crate::geometry::normal(a, b, c)
 }
 
-/// The unit normal of hole fill `t` (a triangle the plan added) at final positions, its own
-/// direction: `None` for a kept face, and for a fill whose normal has no direction or length in
-/// `f64` (a zero-area fill, or coordinates so large the cross product overflows).
-pub(crate) fn fill_normal(
-    plan: &Plan,
-    mesh: &Mesh,
-    t: &crate::repair::Triangle,
-) -> Option<[f64; 3]> {
-    if t.source.is_some() {
-        return None;
+/// Per plan triangle, the unit normal of the hole its fill closes: one normal per hole (its fill
+/// triangles joined edge to edge), the sum of their normals (cross products, so weighted by area:
+/// for a flat hole exactly the plane's direction, the same for every triangle of it), in the fills'
+/// winding. `None` for a kept face, and for a fill whose hole's normal has no direction or length
+/// in `f64` (zero-area fills, or coordinates so large the cross products overflow).
+pub(crate) fn fill_normals(plan: &Plan, mesh: &Mesh) -> Vec<Option<[f64; 3]>> {
+    let fills: Vec<usize> = (0..plan.triangles.len())
+        .filter(|&i| plan.triangles[i].source.is_none())
+        .collect();
+    let mut out = vec![None; plan.triangles.len()];
+    if fills.is_empty() {
+        return out;
     }
-    unit(triangle_normal(plan, mesh, t))
+    // The holes: fills joined by the edges they share (fills of different holes share none).
+    let mut parent: Vec<u32> = (0..fills.len() as u32).collect();
+    let mut by_edge: FxHashMap<[u32; 2], u32> = FxHashMap::default();
+    for (k, &i) in fills.iter().enumerate() {
+        let v = plan.triangles[i].corners.map(|c| c.vertex);
+        for j in 0..3 {
+            let (a, b) = (v[j], v[(j + 1) % 3]);
+            let other = *by_edge.entry([a.min(b), a.max(b)]).or_insert(k as u32);
+            crate::topology::sets::union(&mut parent, other, k as u32);
+        }
+    }
+    let mut sums: FxHashMap<u32, [f64; 3]> = FxHashMap::default();
+    for (k, &i) in fills.iter().enumerate() {
+        let n = triangle_normal(plan, mesh, &plan.triangles[i]);
+        let sum = sums
+            .entry(crate::topology::sets::find(&mut parent, k as u32))
+            .or_insert([0.0; 3]);
+        for d in 0..3 {
+            sum[d] += n[d];
+        }
+    }
+    for (k, &i) in fills.iter().enumerate() {
+        let hole = crate::topology::sets::find(&mut parent, k as u32);
+        out[i] = unit(sums[&hole]);
+    }
+    out
 }
 
 /// `v` scaled to length 1; `None` when it has no direction (zero, or not finite).
@@ -430,15 +457,15 @@ fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
     }
     let w = v.map(|x| x / largest);
     let length = crate::geometry::dot(w, w).sqrt();
-    // `+ 0.0` turns -0 into 0: two fills of one plane get the same normal, written once.
+    // `+ 0.0` turns -0 into 0, so that one direction is written one way.
     Some(w.map(|x| x / length + 0.0))
 }
 
 /// Whether a normal that a fill's corner takes from the border corner at its vertex may stay
-/// there: it is within 60 degrees of the fill's own unit normal `face`. A hole in a smooth surface
-/// keeps the surface's shading across it; a lid across a crease (a box's missing top, whose
-/// border corners hold the walls' normals, at 90 degrees to the lid) gets the fill's own normal
-/// instead, as does a corner whose normal has no direction.
+/// there: it is within 60 degrees of the unit normal `face` of the fill's hole ([`fill_normals`]).
+/// A hole in a smooth surface keeps the surface's shading across it; a lid across a crease (a
+/// box's missing top, whose border corners hold the walls' normals, at 90 degrees to the lid)
+/// gets the hole's normal instead, as does a corner whose normal has no direction.
 pub(crate) fn borrowed_normal_fits(borrowed: [f64; 3], face: [f64; 3]) -> bool {
     unit(borrowed).is_some_and(|b| crate::geometry::dot(b, face) >= 0.5)
 }

@@ -23,8 +23,8 @@ use rustc_hash::FxHashMap;
 
 use super::names::Claims;
 use super::{
-    borrowed_normal_fits, fill_normal, normal_sums, polygon_corner, push_int, push_number,
-    renumber, write_atomic, Item, Job, Polygons, WriteError, Written,
+    borrowed_normal_fits, normal_sums, polygon_corner, push_int, push_number, renumber,
+    write_atomic, Item, Job, Polygons, WriteError, Written,
 };
 use crate::formats::contain::{self, Location, Unresolved};
 use crate::formats::obj::{library, library_names, read_full, Detail, NotRead, State};
@@ -94,8 +94,9 @@ fn copy(
             }
         }
     }
+    let holes = super::fill_normals(plan, mesh);
     for (i, t) in plan.triangles.iter().enumerate() {
-        let Some(own) = fill_normal(plan, mesh, t) else {
+        let Some(own) = holes[i] else {
             continue;
         };
         for (k, c) in t.corners.iter().enumerate() {

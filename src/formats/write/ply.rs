@@ -6,8 +6,8 @@
 //! its own face's corner at the same vertex, else zeros, so every record keeps its length). Normals
 //! (`nx ny nz`) that disagree with a flipped face are negated; a fill's corner whose vertex's
 //! normal is far from the fill's own takes a copy of the vertex with the fill's normal. A face index list whose item type
-//! cannot hold the copy's largest vertex number (a `uchar` list once a split numbers a vertex
-//! copy 256) is declared with the smallest wider type of its kind, with a note; numbers are never
+//! cannot hold the copy's largest vertex number (a `uchar` list once a split, or a fill's own
+//! normal, numbers a vertex copy 256) is declared with the smallest wider type of its kind, with a note; numbers are never
 //! wrapped or cut.
 //!
 //! Other elements: one that names vertices by a recognised property (integer scalars `vertex`,
@@ -26,7 +26,7 @@ use ply_rs_bw::ply::{ElementDef, Encoding, PropertyType, ScalarType};
 use rustc_hash::FxHashMap;
 
 use super::{
-    borrowed_normal_fits, fill_normal, normal_sums, polygon_corner, renumber, write_atomic, Item,
+    borrowed_normal_fits, fill_normals, normal_sums, polygon_corner, renumber, write_atomic, Item,
     Job, Polygons, WriteError, Written,
 };
 use crate::formats::ply::{header, next_line, scalar, scalar_size};
@@ -327,8 +327,9 @@ impl OwnNormals {
             return own;
         };
         let mut numbers: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
+        let holes = fill_normals(plan, mesh);
         for (i, t) in plan.triangles.iter().enumerate() {
-            let Some(face) = fill_normal(plan, mesh, t) else {
+            let Some(face) = holes[i] else {
                 continue;
             };
             for (j, c) in t.corners.iter().enumerate() {
