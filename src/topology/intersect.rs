@@ -21,7 +21,9 @@
 //!   separate), and the pairs of a region's face with a face that touches the region's plane only
 //!   at the region's corners or along one of its edges (the walls standing on a plate). A tree
 //!   node whose faces all share one such vertex, or all lie in one region, is not walked pair by
-//!   pair (a fan of long faces around a cylinder's cap centre has every box overlap every other);
+//!   pair (a fan of long faces around a cylinder's cap centre has every box overlap every other),
+//!   nor are two nodes of which one lies in a region and the other's faces all touch it so (a
+//!   plate's face node against a node of its walls, `regions::Regions::covers`);
 //!   and the search stops at a budget per face ([`Search::pair_budget`]), its counts then lower
 //!   bounds, so no file can hold it for hours;
 //! - narrow (`meet`): exact `orient3d`/`orient2d` signs decide each such pair; the shared vertices
@@ -260,6 +262,8 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
     // scattered in memory: each face fetches ahead the rows of a face two leaves on and the points
     // of the face one leaf on (whose row it fetched a leaf ago), so those loads overlap instead of
     // stalling one by one.
+    // The regions each face cannot meet, for whole nodes of walls standing on a plate.
+    let covers = regions.covers(surface.table, points);
     let tree = Tree::build(faces.len(), |p| {
         if let Some(&u) = faces.get(p + 16) {
             prefetch(&triangles[u as usize]);
@@ -280,8 +284,13 @@ pub fn intersect(surface: &Surface, search: &Search) -> Intersections {
             }),
             bits: stars.turns[t as usize],
             region: regions.of(t),
+            covers: covers
+                .get(t as usize)
+                .copied()
+                .unwrap_or([regions::NONE; 2]),
         }
     });
+    drop(covers);
     let along = std::mem::take(&mut stars.along);
     drop(stars);
     let mut place = vec![u32::MAX; nt];

@@ -131,6 +131,52 @@ impl Regions {
         self.face.get(t as usize).copied().unwrap_or(NONE)
     }
 
+    /// Per table face, up to two regions none of whose faces it can meet ([`NONE`] in unused
+    /// places): the region it is in, or regions it touches only at their corners or along their
+    /// edges ([`Regions::apart`]; a wall standing on a plate and under another). Empty when the
+    /// mesh has no flat region.
+    pub(super) fn covers(&self, table: &CornerTable, points: &[Point]) -> Vec<[u32; 2]> {
+        // Worth a pass over every face only where regions are a good part of the mesh (CAD
+        // plates), not for a few flat spots of a scan.
+        let in_regions = self.face.iter().filter(|&&r| r != NONE).count();
+        if in_regions < self.face.len() / 8 {
+            return Vec::new();
+        }
+        // A face of each region, whose points give the region's plane.
+        let mut sample: rustc_hash::FxHashMap<u32, u32> = Default::default();
+        for (t, &r) in self.face.iter().enumerate() {
+            if r != NONE {
+                sample.entry(r).or_insert(t as u32);
+            }
+        }
+        let triangles = table.triangles();
+        let at = |t: u32| triangles[t as usize].map(|v| points[v as usize]);
+        (0..self.face.len() as u32)
+            .map(|g| {
+                let own = self.face[g as usize];
+                if own != NONE {
+                    return [own, NONE];
+                }
+                let ids = triangles[g as usize];
+                let mut out = [NONE; 2];
+                let mut found = 0;
+                for v in ids {
+                    let (lo, hi) = (self.start[v as usize], self.start[v as usize + 1]);
+                    for &r in &self.ids[lo as usize..hi as usize] {
+                        if found == 2 || out.contains(&r) {
+                            continue;
+                        }
+                        if self.apart(table, r, at(sample[&r]), g, ids, at(g)) {
+                            out[found] = r;
+                            found += 1;
+                        }
+                    }
+                }
+                out
+            })
+            .collect()
+    }
+
     /// Whether vertex `v` is a corner of a face of region `r`.
     fn has_corner(&self, r: u32, v: u32) -> bool {
         let (lo, hi) = (self.start[v as usize], self.start[v as usize + 1]);
