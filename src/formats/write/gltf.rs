@@ -596,19 +596,24 @@ fn rewrite_mesh(
         // `fill_corner` sends a fill's corner (plan triangle and corner) to its copy.
         let mut own_normals: Vec<(usize, [f64; 3])> = Vec::new();
         let mut fill_corner: FxHashMap<(usize, usize), u32> = FxHashMap::default();
+        // Attribute `name` (at `accessor` here) of the vertices of `order`.
+        let gather_attribute =
+            |cache: &mut FxHashMap<usize, Values>, accessor: usize, order: &[u32], name: &str| {
+                gather(
+                    data,
+                    model,
+                    cache,
+                    accessor,
+                    order,
+                    k,
+                    &parts,
+                    &origin,
+                    &pwhat,
+                    |model, p| attribute_of(model, m, p, name),
+                )
+            };
         if let Some((_, accessor)) = names.iter().find(|(name, _)| name == "NORMAL") {
-            let (bytes, v) = gather(
-                data,
-                model,
-                &mut cache,
-                *accessor,
-                &order,
-                k,
-                &parts,
-                &origin,
-                &pwhat,
-                |model, p| attribute_of(model, m, p, "NORMAL"),
-            )?;
+            let (bytes, v) = gather_attribute(&mut cache, *accessor, &order, "NORMAL")?;
             if v.component == ComponentType::F32 && v.type_ == Type::Vec3 {
                 let mut copies: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
                 for &i in faces {
@@ -648,18 +653,7 @@ fn rewrite_mesh(
             _ => 2,
         });
         for (name, accessor) in &sorted {
-            let gathered = gather(
-                data,
-                model,
-                &mut cache,
-                *accessor,
-                &order,
-                k,
-                &parts,
-                &origin,
-                &pwhat,
-                |model, p| attribute_of(model, m, p, name),
-            )?;
+            let gathered = gather_attribute(&mut cache, *accessor, &order, name)?;
             let (mut bytes, v) = gathered;
             if name == "POSITION" {
                 if v.component != ComponentType::F32 || v.type_ != Type::Vec3 {

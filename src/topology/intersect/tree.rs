@@ -678,6 +678,23 @@ mod tests {
     /// Collects the pairs the walk reports, as (lower, higher) sorted positions.
     struct Pairs(Vec<(u32, u32)>);
 
+    impl Pairs {
+        /// The pairs as (lower, higher) input numbers (`order[p]`: the input at place `p`),
+        /// sorted.
+        fn in_input_order(&self, order: &[u32]) -> Vec<(u32, u32)> {
+            let mut pairs: Vec<(u32, u32)> = self
+                .0
+                .iter()
+                .map(|&(a, b)| {
+                    let (a, b) = (order[a as usize], order[b as usize]);
+                    (a.min(b), a.max(b))
+                })
+                .collect();
+            pairs.sort_unstable();
+            pairs
+        }
+    }
+
     impl Visit for Pairs {
         fn fork(&self) -> Self {
             Pairs(Vec::new())
@@ -779,15 +796,7 @@ mod tests {
             assert_eq!(tree.vertices(p as u32), vertices[order[p] as usize]);
         }
         tree.walk(&mut found);
-        let mut found: Vec<(u32, u32)> = found
-            .0
-            .iter()
-            .map(|&(a, b)| {
-                let (a, b) = (order[a as usize], order[b as usize]);
-                (a.min(b), a.max(b))
-            })
-            .collect();
-        found.sort_unstable();
+        let mut found = found.in_input_order(&order);
         assert!(found.windows(2).all(|w| w[0] != w[1]), "a pair twice");
         found.retain(|&(a, b)| {
             (regions[a as usize] == NONE || regions[a as usize] != regions[b as usize])
@@ -873,15 +882,7 @@ mod tests {
         });
         let mut found = Pairs(Vec::new());
         tree.walk(&mut found);
-        let mut found: Vec<(u32, u32)> = found
-            .0
-            .iter()
-            .map(|&(a, b)| {
-                let (a, b) = (order[a as usize], order[b as usize]);
-                (a.min(b), a.max(b))
-            })
-            .collect();
-        found.sort_unstable();
+        let found = found.in_input_order(&order);
         let reported = |a: usize, b: usize| found.binary_search(&(a as u32, b as u32)).is_ok();
         let (mut plate_walls, mut reported_plate_walls) = (0, 0);
         for a in 0..boxes.len() {
