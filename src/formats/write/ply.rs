@@ -5,10 +5,10 @@
 //! follow their corners (a fill's corner taken from a face without such a list gets the values of
 //! its own face's corner at the same vertex, else zeros, so every record keeps its length). Normals
 //! (`nx ny nz`) that disagree with a flipped face are negated; a fill's corner whose vertex's
-//! normal is far from the fill's own takes a copy of the vertex with the fill's normal. A face index list whose item type
-//! cannot hold the copy's largest vertex number (a `uchar` list once a split, or a fill's own
-//! normal, numbers a vertex copy 256) is declared with the smallest wider type of its kind, with a note; numbers are never
-//! wrapped or cut.
+//! normal is far from the fill's own takes a copy of the vertex with the fill's normal. A face
+//! index list whose item type cannot hold the copy's largest vertex number (a `uchar` list once a
+//! split, or a fill's own normal, numbers a vertex copy 256) is declared with the smallest wider
+//! type of its kind, with a note; numbers are never wrapped or cut.
 //!
 //! Other elements: one that names vertices by a recognised property (integer scalars `vertex`,
 //! `vertex1`, `vertex2`, ..., `vertex_index`, `vertex_id`; integer lists `vertex_indices`,
