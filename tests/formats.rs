@@ -608,6 +608,23 @@ fn ply_element_without_properties_and_a_huge_count_does_not_hang() {
     }
 }
 
+/// An ASCII STL whose `solid` starts anywhere from byte 0 to byte 90 (after spaces or line ends)
+/// is read as ASCII: one triangle. With 80 to 83 blanks first, `solid` runs past the 84 bytes of
+/// a binary header, which then read as a count of 1.7 billion triangles, and the file was
+/// refused as a truncated binary STL.
+#[test]
+fn ascii_stl_after_many_blanks_stays_ascii() {
+    let body = "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n\
+                vertex 0 1 0\nendloop\nendfacet\nendsolid t\n";
+    for blanks in 0..=90 {
+        for blank in [" ", "\n"] {
+            let text = format!("{}{body}", blank.repeat(blanks));
+            let m = ok("a.stl", text.as_bytes());
+            assert_eq!(m.triangles.len(), 1, "{blanks} x {blank:?}");
+        }
+    }
+}
+
 /// The peak resident memory of this process so far (`VmHWM`), in bytes.
 #[cfg(target_os = "linux")]
 fn peak_resident() -> u64 {

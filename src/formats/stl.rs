@@ -91,10 +91,16 @@ fn padding_note(n: u64, extra: usize) -> String {
     format!("{extra} byte(s) after the {n} triangles the binary header declares were ignored{hint}")
 }
 
-/// Whether a file whose first bytes are `header` may be ASCII STL: it starts with `solid` after
-/// any blanks, or it is all blanks so far.
+/// Whether a file whose first bytes are `header` may be ASCII STL: after any blanks, what follows
+/// is `solid` or, cut off by the header's end, the start of it (or nothing).
 fn could_be_ascii(header: &[u8]) -> bool {
-    starts_with_solid(header) || header.iter().all(u8::is_ascii_whitespace)
+    let start = header
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(header.len());
+    let rest = &header[start..];
+    let k = rest.len().min(5);
+    rest[..k].eq_ignore_ascii_case(&b"solid"[..k])
 }
 
 /// How [`parse`] reads a file's bytes; the writer of repaired copies decides by the same rule, so
