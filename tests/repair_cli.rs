@@ -1447,3 +1447,53 @@ fn a_copy_with_a_fill_normal_keeps_its_vertex_tangent_handedness() {
     }
     assert_eq!(from_x_wall, 1);
 }
+
+/// A vertex copy with a fill's own normal does not bend with its vertex's morphs: the open glTF
+/// box with a morph target whose NORMAL deltas are (0.1, 0.2, 0.3) at every vertex. The copy
+/// keeps its 20 vertices' deltas, and the 4 copies at the hole's corners (normal (0, 0, 1)) have
+/// zero deltas (a wall's normal delta bent the lid's normal before).
+#[test]
+fn a_copy_with_a_fill_normal_has_no_morph_normal_delta() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("m");
+    std::fs::create_dir_all(&tree).unwrap();
+    let (mut doc, mut bin) = open_box_gltf();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let offset = bin.len();
+    for _ in 0..20 {
+        bin.extend([0.1f32, 0.2, 0.3].iter().flat_map(|x| x.to_le_bytes()));
+    }
+    let views = doc["bufferViews"].as_array_mut().unwrap();
+    views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 240}));
+    let view = views.len() - 1;
+    let accessors = doc["accessors"].as_array_mut().unwrap();
+    accessors.push(json!({"bufferView": view, "componentType": 5126, "count": 20, "type": "VEC3"}));
+    let accessor = accessors.len() - 1;
+    doc["meshes"][0]["primitives"][0]["targets"] = json!([{"NORMAL": accessor}]);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    std::fs::write(tree.join("box.glb"), glb(&doc, &bin)).unwrap();
+    scan(
+        dir.path(),
+        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
+    );
+    let bytes = std::fs::read(dir.path().join("fixed/box.glb")).unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|_| Some(&blob[..]));
+    let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
+    let (_, deltas, _) = reader.read_morph_targets().next().unwrap();
+    let deltas: Vec<[f32; 3]> = deltas.unwrap().collect();
+    assert_eq!((normals.len(), deltas.len()), (24, 24));
+    for (n, d) in normals.iter().zip(&deltas) {
+        let expected = if *n == [0.0, 0.0, 1.0] {
+            [0.0; 3]
+        } else {
+            [0.1, 0.2, 0.3]
+        };
+        assert_eq!(*d, expected, "normal {n:?}");
+    }
+    assert_eq!(normals.iter().filter(|&&n| n == [0.0, 0.0, 1.0]).count(), 4);
+}
