@@ -1398,6 +1398,19 @@ fn a_tilted_hole_gets_one_normal() {
     assert_eq!(doc["accessors"][position]["count"], json!(24));
 }
 
+/// The repaired copy's bytes of the GLB `doc` + `bin`, scanned as `m/box.glb` with
+/// `--repair-dir`.
+fn repaired_glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("m")).unwrap();
+    std::fs::write(dir.path().join("m/box.glb"), glb(doc, bin)).unwrap();
+    scan(
+        dir.path(),
+        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
+    );
+    std::fs::read(dir.path().join("fixed/box.glb")).unwrap()
+}
+
 /// A vertex copy with a fill's own normal keeps the tangent handedness its vertex is written
 /// with. The open glTF box with tangents (w = 1), a UV of its own per vertex, and its +x side
 /// stored inward: the repair turns that side, negating its normals to (1, 0, 0) and its tangents'
@@ -1407,16 +1420,8 @@ fn a_tilted_hole_gets_one_normal() {
 /// lid's plane, unit length. The copy had the source's w = 1 before.
 #[test]
 fn a_copy_with_a_fill_normal_keeps_its_vertex_tangent_handedness() {
-    let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("m");
-    std::fs::create_dir_all(&tree).unwrap();
     let (doc, bin) = open_box_gltf_with(&|p| p, true);
-    std::fs::write(tree.join("box.glb"), glb(&doc, &bin)).unwrap();
-    scan(
-        dir.path(),
-        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
-    );
-    let bytes = std::fs::read(dir.path().join("fixed/box.glb")).unwrap();
+    let bytes = repaired_glb(&doc, &bin);
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
     let blob = gltf.blob.clone().unwrap();
     let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
@@ -1454,9 +1459,6 @@ fn a_copy_with_a_fill_normal_keeps_its_vertex_tangent_handedness() {
 /// zero deltas (a wall's normal delta bent the lid's normal before).
 #[test]
 fn a_copy_with_a_fill_normal_has_no_morph_normal_delta() {
-    let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("m");
-    std::fs::create_dir_all(&tree).unwrap();
     let (mut doc, mut bin) = open_box_gltf();
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
@@ -1473,12 +1475,7 @@ fn a_copy_with_a_fill_normal_has_no_morph_normal_delta() {
     let accessor = accessors.len() - 1;
     doc["meshes"][0]["primitives"][0]["targets"] = json!([{"NORMAL": accessor}]);
     doc["buffers"][0]["byteLength"] = json!(bin.len());
-    std::fs::write(tree.join("box.glb"), glb(&doc, &bin)).unwrap();
-    scan(
-        dir.path(),
-        &["m", "--repair-dir", "fixed", "--csv", "r.csv"],
-    );
-    let bytes = std::fs::read(dir.path().join("fixed/box.glb")).unwrap();
+    let bytes = repaired_glb(&doc, &bin);
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
     let blob = gltf.blob.clone().unwrap();
     let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();

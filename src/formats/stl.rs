@@ -94,11 +94,7 @@ fn padding_note(n: u64, extra: usize) -> String {
 /// Whether a file whose first bytes are `header` may be ASCII STL: after any blanks, what follows
 /// is `solid` or, cut off by the header's end, the start of it (or nothing).
 fn could_be_ascii(header: &[u8]) -> bool {
-    let start = header
-        .iter()
-        .position(|b| !b.is_ascii_whitespace())
-        .unwrap_or(header.len());
-    let rest = &header[start..];
+    let rest = after_blanks(header);
     let k = rest.len().min(5);
     rest[..k].eq_ignore_ascii_case(&b"solid"[..k])
 }
@@ -186,13 +182,18 @@ fn layout_of(bytes: &[u8], size: u64) -> Result<Layout, ReadError> {
 }
 
 fn starts_with_solid(bytes: &[u8]) -> bool {
+    after_blanks(bytes)
+        .get(..5)
+        .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"))
+}
+
+/// `bytes` from their first byte that is not ASCII whitespace.
+fn after_blanks(bytes: &[u8]) -> &[u8] {
     let start = bytes
         .iter()
         .position(|b| !b.is_ascii_whitespace())
         .unwrap_or(bytes.len());
-    bytes[start..]
-        .get(..5)
-        .is_some_and(|s| s.eq_ignore_ascii_case(b"solid"))
+    &bytes[start..]
 }
 
 fn check_limit(triangles: u64, cx: &ReadContext) -> Result<(), ReadError> {

@@ -31,9 +31,7 @@ use rustc_hash::FxHashMap;
 use serde_json::json;
 
 use super::names::Claims;
-use super::{
-    borrowed_normal_fits, fill_normals, normal_sums, write_atomic, Job, WriteError, Written,
-};
+use super::{fill_normals, normal_sums, write_atomic, Job, NormalCopies, WriteError, Written};
 use crate::formats::gltf::accessor::{component_name, type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
 use crate::formats::gltf::container;
@@ -615,31 +613,18 @@ fn rewrite_mesh(
         if let Some((_, accessor)) = names.iter().find(|(name, _)| name == "NORMAL") {
             let (bytes, v) = gather_attribute(&mut cache, *accessor, &order, "NORMAL")?;
             if v.component == ComponentType::F32 && v.type_ == Type::Vec3 {
-                let mut copies: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
-                for &i in faces {
-                    let t = &plan.triangles[i];
-                    let Some(own) = holes[i] else {
-                        continue;
-                    };
-                    for (j, c) in t.corners.iter().enumerate() {
-                        let at = local[&c.vertex] as usize;
-                        let mut n = [0, 1, 2]
-                            .map(|d| decode(ComponentType::F32, &bytes[12 * at + 4 * d..]));
-                        if sums.get(&c.vertex).is_some_and(|sum| dot(n, *sum) < 0.0) {
-                            n = n.map(|x| -x);
-                        }
-                        if borrowed_normal_fits(n, own) {
-                            continue;
-                        }
-                        let copy = *copies
-                            .entry((c.vertex, own.map(f64::to_bits)))
-                            .or_insert_with(|| {
-                                order.push(c.vertex);
-                                own_normals.push((order.len() - 1, own));
-                                (order.len() - 1) as u32
-                            });
-                        fill_corner.insert((i, j), copy);
-                    }
+                let stored = |vertex: u32| {
+                    let at = local[&vertex] as usize;
+                    [0, 1, 2].map(|d| decode(ComponentType::F32, &bytes[12 * at + 4 * d..]))
+                };
+                let copies = NormalCopies::new(plan, &holes, faces.iter().copied(), &sums, stored);
+                let first = order.len();
+                for &(vertex, n) in &copies.copies {
+                    own_normals.push((order.len(), n));
+                    order.push(vertex);
+                }
+                for (&corner, &place) in &copies.corners {
+                    fill_corner.insert(corner, (first + place) as u32);
                 }
             }
         }

@@ -448,6 +448,60 @@ pub(crate) fn fill_normals(plan: &Plan, mesh: &Mesh) -> Vec<Option<[f64; 3]>> {
     out
 }
 
+/// The vertex copies that fills' corners take, in a format whose normals are per vertex (glTF,
+/// PLY): a fill's corner whose vertex's normal as the copy writes it (`stored(v)`, negated where
+/// `sums` says it disagrees with a flipped face, [`normal_sums`]) is more than 60 degrees from its
+/// hole's normal (`holes`, [`fill_normals`]) takes a copy of its vertex with the hole's normal,
+/// one copy per vertex and direction. Only the plan triangles `triangles` are looked at.
+pub(crate) struct NormalCopies {
+    /// Each copy's plan vertex and normal, in the order the copies are to be numbered.
+    pub(crate) copies: Vec<(u32, [f64; 3])>,
+    /// A fill's corner (plan triangle and corner) -> its copy's place in `copies`.
+    pub(crate) corners: FxHashMap<(usize, usize), usize>,
+}
+
+impl NormalCopies {
+    pub(crate) fn new(
+        plan: &Plan,
+        holes: &[Option<[f64; 3]>],
+        triangles: impl IntoIterator<Item = usize>,
+        sums: &FxHashMap<u32, [f64; 3]>,
+        stored: impl Fn(u32) -> [f64; 3],
+    ) -> NormalCopies {
+        let mut out = NormalCopies {
+            copies: Vec::new(),
+            corners: FxHashMap::default(),
+        };
+        let mut places: FxHashMap<(u32, [u64; 3]), usize> = FxHashMap::default();
+        for i in triangles {
+            let Some(own) = holes[i] else {
+                continue;
+            };
+            for (j, c) in plan.triangles[i].corners.iter().enumerate() {
+                let mut n = stored(c.vertex);
+                if sums
+                    .get(&c.vertex)
+                    .is_some_and(|sum| crate::geometry::dot(n, *sum) < 0.0)
+                {
+                    n = n.map(|x| -x);
+                }
+                if borrowed_normal_fits(n, own) {
+                    continue;
+                }
+                let copies = &mut out.copies;
+                let place = *places
+                    .entry((c.vertex, own.map(f64::to_bits)))
+                    .or_insert_with(|| {
+                        copies.push((c.vertex, own));
+                        copies.len() - 1
+                    });
+                out.corners.insert((i, j), place);
+            }
+        }
+        out
+    }
+}
+
 /// `v` scaled to length 1; `None` when it has no direction (zero, or not finite).
 fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
     // Divided by its largest component first, so that squaring neither overflows nor underflows.

@@ -26,8 +26,8 @@ use ply_rs_bw::ply::{ElementDef, Encoding, PropertyType, ScalarType};
 use rustc_hash::FxHashMap;
 
 use super::{
-    borrowed_normal_fits, fill_normals, normal_sums, polygon_corner, renumber, write_atomic, Item,
-    Job, Polygons, WriteError, Written,
+    fill_normals, normal_sums, polygon_corner, renumber, write_atomic, Item, Job, NormalCopies,
+    Polygons, WriteError, Written,
 };
 use crate::formats::ply::{header, next_line, scalar, scalar_size};
 use crate::mesh::Mesh;
@@ -89,7 +89,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     let mut notes = Vec::new();
     let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
     let sums = normal_sums(plan, mesh, |c| Some(c.vertex));
-    let copies = OwnNormals::new(&elements, plan, mesh, &sums, kept);
+    let copies = normal_copies(&elements, plan, mesh, &sums);
 
     // The face element as the copy declares it: its index list's item type widened when the
     // copy's vertex numbers do not fit it (a split's copies numbered past 255 in a `uchar` list).
@@ -107,7 +107,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                     .map(|c| index[c.vertex as usize])
                     .max()
                     .unwrap_or(0)
-                    .max((kept + copies.normals.len()).saturating_sub(1) as u32);
+                    .max((kept + copies.copies.len()).saturating_sub(1) as u32);
                 if let Some(wide) = wider(item, top) {
                     notes.push(format!(
                         "the PLY face list `{key}` is {} in the copy instead of {}: the repair \
@@ -168,7 +168,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                     body.record(&e.def, &record);
                 }
                 // The copies of vertices that fills' corners take with the fills' own normals.
-                for &(v, n) in &copies.normals {
+                for &(v, n) in &copies.copies {
                     let from = super::original(plan, mesh, v) as usize;
                     let mut record = e.record(from).to_vec();
                     let p = plan.position(mesh, v);
@@ -180,7 +180,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                     }
                     body.record(&e.def, &record);
                 }
-                counts.push((e.def.name.clone(), Some(kept + copies.normals.len())));
+                counts.push((e.def.name.clone(), Some(kept + copies.copies.len())));
             }
             "face" => {
                 let def = face_def.as_ref().unwrap_or(&e.def);
@@ -218,7 +218,10 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                         .enumerate()
                         .map(|(j, &v)| {
                             let copy = match *item {
-                                Item::Triangle(i) => copies.corners.get(&(i, j)).copied(),
+                                Item::Triangle(i) => copies
+                                    .corners
+                                    .get(&(i, j))
+                                    .map(|&place| (kept + place) as u32),
                                 Item::Polygon { .. } => None,
                             };
                             copy.unwrap_or(index[v as usize])
@@ -292,69 +295,35 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     Ok(notes)
 }
 
-/// The vertex copies hole fills take for their own normals: a fill's corner whose vertex's normal
-/// (`nx ny nz`, as the copy writes it) is far from the fill's own normal
-/// ([`borrowed_normal_fits`]) takes a copy of its vertex with the fill's normal instead (a PLY
-/// vertex has one normal), one copy per vertex and direction, numbered after the kept vertices.
-struct OwnNormals {
-    /// Each copy's plan vertex and normal, in number order.
-    normals: Vec<(u32, [f64; 3])>,
-    /// A fill's corner (plan triangle and corner) -> its copy's number.
-    corners: FxHashMap<(usize, usize), u32>,
-}
-
-impl OwnNormals {
-    fn new(
-        elements: &[Element],
-        plan: &Plan,
-        mesh: &Mesh,
-        sums: &FxHashMap<u32, [f64; 3]>,
-        kept: usize,
-    ) -> OwnNormals {
-        let mut own = OwnNormals {
-            normals: Vec::new(),
-            corners: FxHashMap::default(),
-        };
-        let Some(e) = elements.iter().find(|e| e.def.name == "vertex") else {
-            return own;
-        };
-        let keys = e.def.properties.keys();
-        let Some(slots) = ["nx", "ny", "nz"]
-            .map(|k| keys.clone().position(|p| p == k))
-            .into_iter()
-            .collect::<Option<Vec<usize>>>()
-        else {
-            return own;
-        };
-        let mut numbers: FxHashMap<(u32, [u64; 3]), u32> = FxHashMap::default();
-        let holes = fill_normals(plan, mesh);
-        for (i, t) in plan.triangles.iter().enumerate() {
-            let Some(face) = holes[i] else {
-                continue;
-            };
-            for (j, c) in t.corners.iter().enumerate() {
-                let record = e.record(super::original(plan, mesh, c.vertex) as usize);
-                let mut n = [0, 1, 2].map(|k| record[scalar_at(e, record, slots[k])]);
-                if sums
-                    .get(&c.vertex)
-                    .is_some_and(|sum| crate::geometry::dot(n, *sum) < 0.0)
-                {
-                    n = n.map(|x| -x);
-                }
-                if borrowed_normal_fits(n, face) {
-                    continue;
-                }
-                let number = *numbers
-                    .entry((c.vertex, face.map(f64::to_bits)))
-                    .or_insert_with(|| {
-                        own.normals.push((c.vertex, face));
-                        (kept + own.normals.len() - 1) as u32
-                    });
-                own.corners.insert((i, j), number);
-            }
-        }
-        own
-    }
+/// The vertex copies fills' corners take for their hole's normal ([`NormalCopies`]; a PLY vertex
+/// has one normal), numbered after the kept vertices; none without `nx ny nz`.
+fn normal_copies(
+    elements: &[Element],
+    plan: &Plan,
+    mesh: &Mesh,
+    sums: &FxHashMap<u32, [f64; 3]>,
+) -> NormalCopies {
+    let none = NormalCopies {
+        copies: Vec::new(),
+        corners: FxHashMap::default(),
+    };
+    let Some(e) = elements.iter().find(|e| e.def.name == "vertex") else {
+        return none;
+    };
+    let keys = e.def.properties.keys();
+    let Some(slots) = ["nx", "ny", "nz"]
+        .map(|k| keys.clone().position(|p| p == k))
+        .into_iter()
+        .collect::<Option<Vec<usize>>>()
+    else {
+        return none;
+    };
+    let stored = |vertex: u32| {
+        let record = e.record(super::original(plan, mesh, vertex) as usize);
+        [0, 1, 2].map(|k| record[scalar_at(e, record, slots[k])])
+    };
+    let holes = fill_normals(plan, mesh);
+    NormalCopies::new(plan, &holes, 0..plan.triangles.len(), sums, stored)
 }
 
 /// How an element other than `vertex` and `face` refers to vertices.
