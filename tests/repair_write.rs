@@ -173,6 +173,37 @@ fn dirs() -> (tempfile::TempDir, PathBuf, PathBuf) {
     (dir, src, out)
 }
 
+/// A repairing scan reads an OBJ once: its copy is written from what the scan's read kept, not
+/// from the file read again. Here the file changes between the read and the write, and the copy
+/// is still of what was read: a cube of quads without its top (10 triangles, one hole of four
+/// edges), its hole filled with 2 triangles.
+#[test]
+fn obj_copy_is_written_from_the_scans_read() {
+    let (_dir, src, out) = dirs();
+    let source = src.join("box.obj");
+    let mut text = String::new();
+    for p in CUBE {
+        text.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
+    }
+    // Outward quads, the top (4 5 6 7 in 0-based numbers) left out.
+    text.push_str("f 1 4 3 2\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n");
+    std::fs::write(&source, text).unwrap();
+    let c = cx(&src);
+    let (mut meshes, retained) =
+        meshvet::formats::read_retaining(&source, Format::Obj, &c).unwrap();
+    let mesh = meshes.remove(0);
+    assert_eq!(mesh.triangles.len(), 10);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    assert_eq!(plan.summary(), "fill-holes:1(2 faces)");
+    std::fs::write(&source, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let copy = out.join("box.obj");
+    let kept = retained.map(|r| (&mesh, r));
+    write_copy(&source, Format::Obj, &[Some(plan)], &copy, &c, kept)
+        .expect("the copy is written from the read the scan kept");
+    let again = read(&copy, Format::Obj, &cx(&out)).unwrap().remove(0);
+    assert_eq!((again.positions.len(), again.triangles.len()), (8, 12));
+}
+
 /// Unit cube corners and its six outward quads (counter-clockwise seen from outside).
 const CUBE: [[f64; 3]; 8] = [
     [0.0, 0.0, 0.0],

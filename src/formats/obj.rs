@@ -37,7 +37,8 @@ pub(crate) fn read_retaining(
     cx: &ReadContext,
 ) -> Result<(Vec<Mesh>, Retained), ReadError> {
     let (meshes, detail) = read_with(path, cx, Some(Box::default()))?;
-    Ok((meshes, Retained::new(detail.unwrap_or_default())))
+    // The `Detail` itself, not its box: the writer takes back exactly this type.
+    Ok((meshes, Retained::new(*detail.unwrap_or_default())))
 }
 
 /// The material libraries an OBJ file names, found as the reader finds them.
