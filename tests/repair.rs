@@ -687,6 +687,59 @@ fn a_fill_that_would_cross_the_surface_is_left_open() {
     );
 }
 
+/// A 60 x 30 torus (3,600 faces) with twenty holes spread around it (the six faces around vertex
+/// `(3k, 7k mod 30)` removed: rings of six edges, one column of faces apart) and a thin triangle
+/// through the eighth hole, from half the tube's radius to one and a half along the line from the
+/// tube's centre through the removed vertex: every fill of that hole is crossed by it (the fill
+/// closes the tube there, and the line goes from inside to outside), no other fill is near it, and
+/// the triangle touches no face left around the hole. So nineteen holes are filled, one is left
+/// open for the crossing, and the triangle's own outline is left open as it would repeat the
+/// triangle. The fills are checked against only the faces near them: this checks that every
+/// fill is still checked, wherever it is.
+#[test]
+fn one_crossing_fill_among_many_is_left_open() {
+    let (n, m) = (60, 30);
+    let mut torus = shapes::torus(n, m, None);
+    let holes: Vec<u32> = (0..20).map(|k| (3 * k * m + (7 * k) % m) as u32).collect();
+    torus
+        .triangles
+        .retain(|t| !t.iter().any(|v| holes.contains(v)));
+    let p = torus.positions[holes[7] as usize];
+    let u = std::f64::consts::TAU * 21.0 / n as f64;
+    let centre = [shapes::TORUS_R * u.cos(), shapes::TORUS_R * u.sin(), 0.0];
+    let along = |s: f64| std::array::from_fn(|k| centre[k] + s * (p[k] - centre[k]));
+    let outer: [f64; 3] = along(1.5);
+    let aside = [
+        outer[0] - 0.01 * u.sin(),
+        outer[1] + 0.01 * u.cos(),
+        outer[2],
+    ];
+    let spike = Mesh::new(vec![along(0.5), outer, aside], vec![[0, 1, 2]]);
+    let mesh = shapes::merge(&[torus, spike]);
+    let before = analyse(&mesh, &Default::default());
+    assert_eq!(
+        (before.holes(), before.intersecting_components()),
+        (21, Some(0))
+    );
+    let (p, _, after) = repaired(&mesh);
+    assert_eq!(count(&p, Kind::FillHoles), 19);
+    assert_eq!(
+        p.not_repairable,
+        vec![
+            "1 hole left open: filling would overlap existing edges",
+            "1 hole left open: filling would cross the rest of the surface"
+        ]
+    );
+    assert_eq!(
+        (
+            after.holes(),
+            after.intersecting_components(),
+            after.self_intersections()
+        ),
+        (2, Some(0), Some(0))
+    );
+}
+
 /// Repairs `mesh` with `options`, checks that a second repair changes nothing, and analyses the
 /// result welded as the options weld.
 fn repaired_with(mesh: &Mesh, options: &Options) -> (Plan, Analysis) {

@@ -1,13 +1,14 @@
 //! Geometry on plain `[f64; 3]` points, the ground floor every other layer builds on: vector
 //! arithmetic, face normals, the position order used to break ties, bounding boxes, exact 2D tests
-//! on top of `robust`'s predicates ([`exact`]), polygon triangulation ([`polygon`]) and the order
-//! of points along space-filling curves (`curve`).
+//! on top of `robust`'s predicates ([`exact`]), polygon triangulation ([`polygon`]), the order
+//! of points along space-filling curves (`curve`) and which boxes come near a few others (`near`).
 //!
 //! Points are `[f64; 3]` everywhere (readers, weld, table, repair, writers) so that nothing converts
 //! on the hot paths; these functions take and return them by value (they are `Copy` and inline).
 
 pub(crate) mod curve;
 pub mod exact;
+pub(crate) mod near;
 pub mod polygon;
 
 /// `a - b`.
