@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-use meshvet::formats::write::write_copy;
+use meshvet::formats::write::{write_copy, ScanRead};
 use meshvet::formats::{read, read_retaining, Format, ReadContext};
 
 use meshvet::repair::{plan, plan_with, Options};
@@ -102,8 +102,11 @@ fn main() {
             let m = meshes.remove(0);
             let (_, built) = analyse_keeping(&m, &Default::default());
             let p = plan_with(&m, &Options::default(), Some(built));
-            let retained = retained.map(|r| (&m, r));
-            write_copy(&source, format, &[Some(p)], &copy, &cx, retained).expect("written")
+            let read = ScanRead {
+                meshes: std::slice::from_ref(&m),
+                retained,
+            };
+            write_copy(&source, format, &[Some(p)], &copy, &cx, Some(read)).expect("written")
         });
         let repair = repairing - scan;
         println!(

@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 
-use meshvet::formats::write::{write_copy, write_repaired};
+use meshvet::formats::write::{write_copy, write_repaired, ScanRead};
 use meshvet::formats::{read, Format, Limits, ReadContext};
 use meshvet::repair::{Corner, Kind, NewVertex, Plan, Triangle};
 use meshvet::Mesh;
@@ -144,8 +144,11 @@ fn round_trip(
     }
     let elsewhere = out.parent().unwrap().join("from-retained");
     let other = elsewhere.join(out.file_name().unwrap());
-    let retained = retained.map(|r| (&kept_meshes[0], r));
-    write_copy(source, format, plans, &other, &c, retained).unwrap();
+    let scanned = ScanRead {
+        meshes: &kept_meshes,
+        retained,
+    };
+    write_copy(source, format, plans, &other, &c, Some(scanned)).unwrap();
     assert_eq!(
         std::fs::read(&other).unwrap(),
         std::fs::read(out).unwrap(),
@@ -197,11 +200,122 @@ fn obj_copy_is_written_from_the_scans_read() {
     assert_eq!(plan.summary(), "fill-holes:1(2 faces)");
     std::fs::write(&source, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let copy = out.join("box.obj");
-    let kept = retained.map(|r| (&mesh, r));
-    write_copy(&source, Format::Obj, &[Some(plan)], &copy, &c, kept)
-        .expect("the copy is written from the read the scan kept");
+    let scanned = ScanRead {
+        meshes: std::slice::from_ref(&mesh),
+        retained,
+    };
+    write_copy(
+        &source,
+        Format::Obj,
+        &[Some(plan)],
+        &copy,
+        &c,
+        Some(scanned),
+    )
+    .expect("the copy is written from the read the scan kept");
     let again = read(&copy, Format::Obj, &cx(&out)).unwrap().remove(0);
     assert_eq!((again.positions.len(), again.triangles.len()), (8, 12));
+}
+
+/// The cube of quads without its top (vertices 0-based as in `CUBE`), split as the readers split
+/// a quad `a b c d`: `a b c`, `a c d`.
+const OPEN_BOX: [[usize; 4]; 5] = [
+    [0, 3, 2, 1],
+    [0, 1, 5, 4],
+    [1, 2, 6, 5],
+    [2, 3, 7, 6],
+    [3, 0, 4, 7],
+];
+
+/// The open box as a file of `format` (text encodings), and one triangle as the same format.
+fn open_box_and_triangle(format: Format) -> [String; 2] {
+    let points = |n: usize| {
+        CUBE[..n]
+            .iter()
+            .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
+    };
+    let one = [[0usize, 1, 2]];
+    match format {
+        Format::Obj => [
+            points(8).map(|l| format!("v {l}")).collect::<String>()
+                + &OPEN_BOX
+                    .map(|q| format!("f {} {} {} {}\n", q[0] + 1, q[1] + 1, q[2] + 1, q[3] + 1))
+                    .concat(),
+            points(3).map(|l| format!("v {l}")).collect::<String>() + "f 1 2 3\n",
+        ],
+        Format::Off => [
+            "OFF\n8 5 0\n".to_owned()
+                + &points(8).collect::<String>()
+                + &OPEN_BOX
+                    .map(|q| format!("4 {} {} {} {}\n", q[0], q[1], q[2], q[3]))
+                    .concat(),
+            "OFF\n3 1 0\n".to_owned() + &points(3).collect::<String>() + "3 0 1 2\n",
+        ],
+        Format::Ply => {
+            let header = |v: usize, f: usize| {
+                format!("ply\nformat ascii 1.0\nelement vertex {v}\nproperty float x\nproperty float y\nproperty float z\nelement face {f}\nproperty list uchar int vertex_indices\nend_header\n")
+            };
+            [
+                header(8, 5)
+                    + &points(8).collect::<String>()
+                    + &OPEN_BOX
+                        .map(|q| format!("4 {} {} {} {}\n", q[0], q[1], q[2], q[3]))
+                        .concat(),
+                header(3, 1) + &points(3).collect::<String>() + "3 0 1 2\n",
+            ]
+        }
+        _ => {
+            let facets = |triangles: &[[usize; 3]]| {
+                let mut text = "solid box\n".to_owned();
+                for t in triangles {
+                    text.push_str("facet normal 0 0 0\nouter loop\n");
+                    for &v in t {
+                        let p = CUBE[v];
+                        text.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
+                    }
+                    text.push_str("endloop\nendfacet\n");
+                }
+                text + "endsolid box\n"
+            };
+            let split: Vec<[usize; 3]> = OPEN_BOX
+                .iter()
+                .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+                .collect();
+            [facets(&split), facets(&one)]
+        }
+    }
+}
+
+/// A writer that reads its source again refuses the copy when the file changed after the scan
+/// read it (the plans were made for what the scan read): an open box is read and planned (its
+/// hole filled), then the file is replaced by one triangle before the copy is written. No copy
+/// is written, and the message says why and what to do.
+#[test]
+fn a_source_changed_after_the_scan_read_it_is_not_copied() {
+    for format in [Format::Obj, Format::Off, Format::Ply, Format::Stl] {
+        let (_dir, src, out) = dirs();
+        let source = src.join(format!("box.{}", format.name()));
+        let [open_box, triangle] = open_box_and_triangle(format);
+        std::fs::write(&source, open_box).unwrap();
+        let c = cx(&src);
+        let meshes = read(&source, format, &c).unwrap();
+        assert_eq!(meshes[0].triangles.len(), 10, "{format:?}");
+        let plan = meshvet::repair::plan(&meshes[0], &Default::default());
+        assert_eq!(plan.summary(), "fill-holes:1(2 faces)", "{format:?}");
+        std::fs::write(&source, triangle).unwrap();
+        let copy = out.join(source.file_name().unwrap());
+        let scanned = ScanRead {
+            meshes: &meshes,
+            retained: None,
+        };
+        let refused = write_copy(&source, format, &[Some(plan)], &copy, &c, Some(scanned));
+        assert_eq!(
+            refused.map_err(|e| e.to_string()),
+            Err("the file changed after the scan read it: scan it again to repair it".into()),
+            "{format:?}"
+        );
+        assert!(!copy.exists(), "{format:?}");
+    }
 }
 
 /// Unit cube corners and its six outward quads (counter-clockwise seen from outside).

@@ -263,13 +263,10 @@ fn stage_and_check(
         .file_name()
         .ok_or_else(|| "the copy has no file name".to_owned())?;
     let staged = stage.path.join(name);
-    // What the scan's read kept goes with the mesh it read (one-mesh formats only).
-    let retained = match (retained, meshes) {
-        (Some(r), [mesh]) => Some((mesh, r)),
-        _ => None,
-    };
-    let written = write::write_claimed(source, format, plans, &staged, context, retained, &claims)
-        .map_err(|e| e.to_string())?;
+    let read = write::ScanRead { meshes, retained };
+    let written =
+        write::write_claimed(source, format, plans, &staged, context, Some(read), &claims)
+            .map_err(|e| e.to_string())?;
     // Read the copy back and judge it as the scan judges a file.
     let copy_context = ReadContext {
         root: stage.path.clone(),

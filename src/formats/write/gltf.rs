@@ -43,13 +43,13 @@ use crate::repair::Plan;
 /// Writes the copy and, beside it, the buffers and images it names.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
     let (source, plans, out, cx, claims) = (job.source, job.plans, job.out, job.cx, job.claims);
-    let side = crate::caught(|| write_unguarded(source, plans, out, cx, claims)).unwrap_or_else(
-        |panic| {
+    let scanned = job.read.as_ref().map(|r| r.meshes);
+    let side = crate::caught(|| write_unguarded(source, plans, out, cx, claims, scanned))
+        .unwrap_or_else(|panic| {
             Err(WriteError::new(format!(
                 "the glTF writer crashed on this file ({panic}): please report it"
             )))
-        },
-    )?;
+        })?;
     Ok(job.written(side, Vec::new()))
 }
 
@@ -63,11 +63,13 @@ fn write_unguarded(
     out: &Path,
     cx: &ReadContext,
     claims: &Claims,
+    scanned: Option<&[Mesh]>,
 ) -> Result<Vec<PathBuf>, WriteError> {
     let bytes = crate::formats::read_regular(source)?;
     let container = container::split(&bytes)?;
     let model = container::parse_model(container.json)?;
     let meshes = read(source, Format::Gltf, cx)?;
+    super::unchanged(scanned, &meshes)?;
     if plans.len() != meshes.len() {
         return Err(bad(format!(
             "the file has {} meshes but {} plans were given",

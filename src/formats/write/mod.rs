@@ -64,9 +64,18 @@ pub struct Written {
     pub notes: Vec<String>,
 }
 
+/// What a scan read of a source whose copy it writes: the meshes its plans were made for, and what
+/// its read kept for the writer ([`super::read_retaining`]; the writer then does not read the
+/// source again). A writer that does read it again refuses the copy when that read differs: the
+/// file changed after the scan read it, and the plans are not for what it holds now.
+pub struct ScanRead<'a> {
+    pub meshes: &'a [Mesh],
+    pub retained: Option<super::Retained>,
+}
+
 /// One repaired copy to write: the source file, one plan per mesh its reader returns (`None`: that
-/// mesh is left as it is), where the copy goes, the reader's context, what the scan's read kept
-/// of the source (then the writer does not read it again), and the names claimed in the folder the
+/// mesh is left as it is), where the copy goes, the reader's context, what the scan read of the
+/// source (when a scan did), and the names claimed in the folder the
 /// copy finally goes to (a writer that brings a file beside the copy names it through
 /// [`Claims::side`], so that no other copy in that folder takes the name for other bytes).
 pub struct Job<'a> {
@@ -75,7 +84,7 @@ pub struct Job<'a> {
     pub plans: &'a [Option<Plan>],
     pub out: &'a Path,
     pub cx: &'a ReadContext,
-    pub retained: Option<(&'a Mesh, super::Retained)>,
+    pub read: Option<ScanRead<'a>>,
     pub claims: &'a Claims,
 }
 
@@ -107,6 +116,11 @@ impl Job<'_> {
         Ok((bytes, mesh))
     }
 
+    /// Refuses the copy when the source, read again as `again`, is not what the scan read.
+    pub(crate) fn unchanged(&self, again: &[Mesh]) -> Result<(), WriteError> {
+        unchanged(self.read.as_ref().map(|r| r.meshes), again)
+    }
+
     /// What a writer wrote: the copy, the `side` files beside it, and `notes`.
     pub(crate) fn written(&self, side: Vec<PathBuf>, notes: Vec<String>) -> Written {
         let mut files = vec![self.out.to_path_buf()];
@@ -130,20 +144,42 @@ pub fn write_repaired(
 }
 
 /// [`write_repaired`], with the writer's notes. Every file it writes is `out` or lies in `out`'s
-/// folder or below it. `retained` is what the scan's read kept of the source
-/// ([`super::read_retaining`]; the meshes the plans were made for are that read's): the writer
-/// then does not read the source again.
+/// folder or below it. `read` is what a scan read of the source, which the plans were made for
+/// ([`ScanRead`]).
 pub fn write_copy(
     source: &Path,
     format: Format,
     plans: &[Option<Plan>],
     out: &Path,
     cx: &ReadContext,
-    retained: Option<(&Mesh, super::Retained)>,
+    read: Option<ScanRead<'_>>,
 ) -> Result<Written, WriteError> {
     let folder = out.parent().unwrap_or(Path::new(""));
     let claims = Claims::new(folder);
-    write_claimed(source, format, plans, out, cx, retained, &claims)
+    write_claimed(source, format, plans, out, cx, read, &claims)
+}
+
+/// Refuses a copy whose source, read again as `again`, is not the `scanned` meshes.
+pub(crate) fn unchanged(scanned: Option<&[Mesh]>, again: &[Mesh]) -> Result<(), WriteError> {
+    let same = |a: &Mesh, b: &Mesh| {
+        a.triangles == b.triangles
+            && a.positions.len() == b.positions.len()
+            && a.positions
+                .iter()
+                .zip(&b.positions)
+                .all(|(p, q)| p.map(f64::to_bits) == q.map(f64::to_bits))
+    };
+    match scanned {
+        Some(scanned)
+            if scanned.len() != again.len()
+                || scanned.iter().zip(again).any(|(a, b)| !same(a, b)) =>
+        {
+            Err(WriteError::new(
+                "the file changed after the scan read it: scan it again to repair it",
+            ))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// [`write_copy`] into a staging folder that stands for the folder the copy finally goes to:
@@ -155,7 +191,7 @@ pub fn write_claimed(
     plans: &[Option<Plan>],
     out: &Path,
     cx: &ReadContext,
-    retained: Option<(&Mesh, super::Retained)>,
+    read: Option<ScanRead<'_>>,
     claims: &Claims,
 ) -> Result<Written, WriteError> {
     refuse_own_source(source, out)?;
@@ -172,7 +208,7 @@ pub fn write_claimed(
         plans,
         out,
         cx,
-        retained,
+        read,
         claims,
     })
 }

@@ -33,8 +33,11 @@ use crate::mesh::Mesh;
 
 /// Writes the copy and, beside it, its material libraries and textures.
 pub fn write(mut job: Job<'_>) -> Result<Written, WriteError> {
-    let kept = match job.retained.take() {
-        Some((mesh, retained)) => retained.take::<Detail>().map(|detail| (mesh, detail)),
+    let kept = match job.read.as_mut() {
+        Some(read) => match (read.meshes, read.retained.take()) {
+            ([mesh], Some(retained)) => retained.take::<Detail>().map(|detail| (mesh, detail)),
+            _ => None,
+        },
         None => None,
     };
     let (side, notes) = copy(&job, kept)?;
@@ -53,6 +56,7 @@ fn copy(
         Some((mesh, detail)) => (mesh, detail),
         None => {
             read = read_full(source, cx)?;
+            job.unchanged(std::slice::from_ref(&read.0))?;
             (&read.0, &read.1)
         }
     };

@@ -10,31 +10,32 @@ use super::{
     normal_sums, number, polygon_corner, renumber, write_atomic, Item, Job, Polygons, WriteError,
     Written,
 };
-use crate::formats::off::read_full;
-use crate::formats::ReadContext;
+use crate::formats::off::{read_full, Detail};
+use crate::mesh::Mesh;
 use crate::repair::Plan;
 
 /// Writes the copy.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    copy(job.source, job.single()?, job.out, job.cx)?;
+    let (mesh, detail) = read_full(job.source, job.cx)?;
+    job.unchanged(std::slice::from_ref(&mesh))?;
+    copy(&mesh, &detail, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), Vec::new()))
 }
 
-fn copy(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), WriteError> {
-    let (mesh, detail) = read_full(source, cx)?;
+fn copy(mesh: &Mesh, detail: &Detail, plan: &Plan, out: &Path) -> Result<(), WriteError> {
     let polygons = Polygons::new(
         detail.faces.len(),
         |f, out| out.extend_from_slice(&detail.faces[f]),
-        &mesh,
+        mesh,
     )?;
-    let items = polygons.items(plan, &mesh);
+    let items = polygons.items(plan, mesh);
     let (index, kept) = renumber(plan);
     // `[ST][C][N][4]OFF`: normals come right after x y z (after w in 4OFF, which is rare).
     let prefix = detail.keyword.to_ascii_uppercase();
     let prefix = &prefix[..prefix.find("OFF").unwrap_or(0)];
     let has_normals = prefix.contains('N') && !prefix.contains('4');
     let sums = if has_normals {
-        normal_sums(plan, &mesh, |c| Some(c.vertex))
+        normal_sums(plan, mesh, |c| Some(c.vertex))
     } else {
         Default::default()
     };
@@ -50,8 +51,8 @@ fn copy(source: &Path, plan: &Plan, out: &Path, cx: &ReadContext) -> Result<(), 
         if !used {
             continue;
         }
-        let p = plan.position(&mesh, v as u32);
-        let from = super::original(plan, &mesh, v as u32) as usize;
+        let p = plan.position(mesh, v as u32);
+        let from = super::original(plan, mesh, v as u32) as usize;
         let _ = write!(text, "{} {} {}", number(p[0]), number(p[1]), number(p[2]));
         let extra = detail.vertex_extra.get(from).map_or("", String::as_str);
         let mut words: Vec<String> = extra.split_ascii_whitespace().map(str::to_owned).collect();

@@ -50,6 +50,7 @@ impl Element {
 /// Writes the copy, with notes on what it could not keep (elements left out, records dropped).
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
     let (bytes, mesh) = job.source_and_mesh()?;
+    job.unchanged(std::slice::from_ref(&mesh))?;
     let notes = copy(&bytes, &mesh, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), notes))
 }

@@ -19,6 +19,7 @@ use crate::repair::Plan;
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
     let bytes = crate::formats::read_regular(job.source)?;
     let (mesh, solids) = parse_with_solids(&bytes, job.cx)?;
+    job.unchanged(std::slice::from_ref(&mesh))?;
     let notes = copy(&bytes, &mesh, &solids, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), notes))
 }

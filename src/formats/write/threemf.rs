@@ -42,12 +42,14 @@ use crate::repair::Plan;
 /// byte of every part kept.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
     let (source, plans, out, cx) = (job.source, job.plans, job.out, job.cx);
-    let notes =
-        crate::caught(|| write_unguarded(source, plans, out, cx)).unwrap_or_else(|panic| {
+    let scanned = job.read.as_ref().map(|r| r.meshes);
+    let notes = crate::caught(|| write_unguarded(source, plans, out, cx, scanned)).unwrap_or_else(
+        |panic| {
             Err(WriteError::new(format!(
                 "the 3MF writer crashed on this file ({panic}): please report it"
             )))
-        })?;
+        },
+    )?;
     Ok(job.written(Vec::new(), notes))
 }
 
@@ -66,8 +68,10 @@ fn write_unguarded(
     plans: &[Option<Plan>],
     out: &Path,
     cx: &ReadContext,
+    scanned: Option<&[Mesh]>,
 ) -> Result<Vec<String>, WriteError> {
     let read = read_full(source, cx)?;
+    super::unchanged(scanned, &read.meshes)?;
     if plans.len() != read.meshes.len() {
         return Err(WriteError::new(format!(
             "the file has {} meshes but {} plans were given",
