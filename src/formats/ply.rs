@@ -185,7 +185,8 @@ fn min_element_bytes(def: &ElementDef, encoding: Encoding) -> u64 {
         .sum()
 }
 
-fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
+/// The mesh of a PLY file's `bytes` (what [`read`] returns, for a writer that has the bytes).
+pub(crate) fn parse(bytes: &[u8], cx: &ReadContext) -> Result<Mesh, ReadError> {
     if bytes.is_empty() {
         let mut mesh = Mesh::default();
         mesh.notes.push("the file is empty".into());

@@ -101,21 +101,6 @@ impl Job<'_> {
         }
     }
 
-    /// The source's bytes and its one mesh, read again (for a writer that keeps nothing of the
-    /// scan's read: its parse costs little next to the copy's).
-    pub(crate) fn source_and_mesh(&self) -> Result<(Vec<u8>, Mesh), WriteError> {
-        let bytes = super::read_regular(self.source)?;
-        let mesh = super::read(self.source, self.format, self.cx)?
-            .pop()
-            .ok_or_else(|| {
-                WriteError::new(format!(
-                    "the {} reader returned no mesh",
-                    self.format.name().to_uppercase()
-                ))
-            })?;
-        Ok((bytes, mesh))
-    }
-
     /// Refuses the copy when the source, read again as `again`, is not what the scan read.
     pub(crate) fn unchanged(&self, again: &[Mesh]) -> Result<(), WriteError> {
         unchanged(self.read.as_ref().map(|r| r.meshes), again)

@@ -49,7 +49,9 @@ impl Element {
 
 /// Writes the copy, with notes on what it could not keep (elements left out, records dropped).
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    let (bytes, mesh) = job.source_and_mesh()?;
+    // Read once, as the reader reads it (its limits), and parsed as it parses.
+    let bytes = crate::formats::read_bytes(job.source, &job.cx.limits)?;
+    let mesh = crate::formats::ply::parse(&bytes, job.cx)?;
     job.unchanged(std::slice::from_ref(&mesh))?;
     let notes = copy(&bytes, &mesh, job.single()?, job.out)?;
     Ok(job.written(Vec::new(), notes))
