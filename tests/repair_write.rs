@@ -184,13 +184,8 @@ fn dirs() -> (tempfile::TempDir, PathBuf, PathBuf) {
 fn obj_copy_is_written_from_the_scans_read() {
     let (_dir, src, out) = dirs();
     let source = src.join("box.obj");
-    let mut text = String::new();
-    for p in CUBE {
-        text.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
-    }
-    // Outward quads, the top (4 5 6 7 in 0-based numbers) left out.
-    text.push_str("f 1 4 3 2\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n");
-    std::fs::write(&source, text).unwrap();
+    let [open_box, _] = open_box_and_triangle(Format::Obj);
+    std::fs::write(&source, open_box).unwrap();
     let c = cx(&src);
     let (mut meshes, retained) =
         meshvet::formats::read_retaining(&source, Format::Obj, &c).unwrap();
@@ -217,71 +212,63 @@ fn obj_copy_is_written_from_the_scans_read() {
     assert_eq!((again.positions.len(), again.triangles.len()), (8, 12));
 }
 
-/// The cube of quads without its top (vertices 0-based as in `CUBE`), split as the readers split
-/// a quad `a b c d`: `a b c`, `a c d`.
-const OPEN_BOX: [[usize; 4]; 5] = [
-    [0, 3, 2, 1],
-    [0, 1, 5, 4],
-    [1, 2, 6, 5],
-    [2, 3, 7, 6],
-    [3, 0, 4, 7],
-];
+/// The cube's quads without its top (`QUADS` but `4 5 6 7`), 0-based.
+fn open_box() -> Vec<[u32; 4]> {
+    QUADS.into_iter().filter(|q| *q != [4, 5, 6, 7]).collect()
+}
 
 /// The open box as a file of `format` (text encodings), and one triangle as the same format.
 fn open_box_and_triangle(format: Format) -> [String; 2] {
-    let points = |n: usize| {
+    let points = |n: usize| -> String {
         CUBE[..n]
             .iter()
             .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
+            .collect()
     };
-    let one = [[0usize, 1, 2]];
-    match format {
-        Format::Obj => [
-            points(8).map(|l| format!("v {l}")).collect::<String>()
-                + &OPEN_BOX
-                    .map(|q| format!("f {} {} {} {}\n", q[0] + 1, q[1] + 1, q[2] + 1, q[3] + 1))
-                    .concat(),
-            points(3).map(|l| format!("v {l}")).collect::<String>() + "f 1 2 3\n",
-        ],
-        Format::Off => [
-            "OFF\n8 5 0\n".to_owned()
-                + &points(8).collect::<String>()
-                + &OPEN_BOX
-                    .map(|q| format!("4 {} {} {} {}\n", q[0], q[1], q[2], q[3]))
-                    .concat(),
-            "OFF\n3 1 0\n".to_owned() + &points(3).collect::<String>() + "3 0 1 2\n",
-        ],
-        Format::Ply => {
-            let header = |v: usize, f: usize| {
-                format!("ply\nformat ascii 1.0\nelement vertex {v}\nproperty float x\nproperty float y\nproperty float z\nelement face {f}\nproperty list uchar int vertex_indices\nend_header\n")
-            };
-            [
-                header(8, 5)
-                    + &points(8).collect::<String>()
-                    + &OPEN_BOX
-                        .map(|q| format!("4 {} {} {} {}\n", q[0], q[1], q[2], q[3]))
-                        .concat(),
-                header(3, 1) + &points(3).collect::<String>() + "3 0 1 2\n",
-            ]
+    // Each quad as a line of `prefix` and its numbers from `base`.
+    let quads = |prefix: &str, base: u32| -> String {
+        open_box()
+            .iter()
+            .map(|q| format!("{prefix} {}\n", q.map(|v| (v + base).to_string()).join(" ")))
+            .collect()
+    };
+    let ply = |v: usize, f: usize| {
+        format!("ply\nformat ascii 1.0\nelement vertex {v}\nproperty float x\nproperty float y\nproperty float z\nelement face {f}\nproperty list uchar int vertex_indices\nend_header\n")
+    };
+    let stl = |triangles: &[[u32; 3]]| {
+        let mut text = "solid box\n".to_owned();
+        for t in triangles {
+            text.push_str("facet normal 0 0 0\nouter loop\n");
+            for &v in t {
+                let p = CUBE[v as usize];
+                text.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
+            }
+            text.push_str("endloop\nendfacet\n");
         }
+        text + "endsolid box\n"
+    };
+    let obj_points = |n| {
+        points(n)
+            .lines()
+            .map(|l| format!("v {l}\n"))
+            .collect::<String>()
+    };
+    match format {
+        Format::Obj => [obj_points(8) + &quads("f", 1), obj_points(3) + "f 1 2 3\n"],
+        Format::Off => [
+            "OFF\n8 5 0\n".to_owned() + &points(8) + &quads("4", 0),
+            "OFF\n3 1 0\n".to_owned() + &points(3) + "3 0 1 2\n",
+        ],
+        Format::Ply => [
+            ply(8, 5) + &points(8) + &quads("4", 0),
+            ply(3, 1) + &points(3) + "3 0 1 2\n",
+        ],
         _ => {
-            let facets = |triangles: &[[usize; 3]]| {
-                let mut text = "solid box\n".to_owned();
-                for t in triangles {
-                    text.push_str("facet normal 0 0 0\nouter loop\n");
-                    for &v in t {
-                        let p = CUBE[v];
-                        text.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
-                    }
-                    text.push_str("endloop\nendfacet\n");
-                }
-                text + "endsolid box\n"
-            };
-            let split: Vec<[usize; 3]> = OPEN_BOX
+            let split: Vec<[u32; 3]> = open_box()
                 .iter()
                 .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
                 .collect();
-            [facets(&split), facets(&one)]
+            [stl(&split), stl(&[[0, 1, 2]])]
         }
     }
 }
