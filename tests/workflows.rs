@@ -38,17 +38,34 @@ struct Run {
 
 /// Runs `program ARGS` in `cwd` as a hook runner does: arguments only, standard input closed,
 /// output captured (no terminal anywhere).
+///
+/// A program this test process has just copied can be busy for a moment: another test's thread
+/// that forks while the copy's file is open for writing holds it open in its child until that
+/// child execs (`ETXTBSY`). That is retried.
 fn run(program: &str, cwd: &Path, args: &[&str]) -> Run {
-    let out = Command::new(program)
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .output()
-        .unwrap();
+    let mut tries = 0;
+    let out = loop {
+        let out = Command::new(program)
+            .args(args)
+            .current_dir(cwd)
+            .stdin(Stdio::null())
+            .output();
+        match out {
+            Err(e) if e.kind() == std::io::ErrorKind::ExecutableFileBusy && tries < 100 => {
+                tries += 1;
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            out => break out.unwrap(),
+        }
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
     Run {
-        code: out.status.code().expect("exits normally"),
+        code: out
+            .status
+            .code()
+            .unwrap_or_else(|| panic!("{program} {args:?} ended with {}: {stderr}", out.status)),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        stderr: stderr.into_owned(),
     }
 }
 
