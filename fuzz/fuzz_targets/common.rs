@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use meshvet::formats::write::write_copy;
+use meshvet::formats::write::{write_copy, ScanRead};
 use meshvet::formats::{read, read_retaining, Format, Limits, ReadContext};
 use meshvet::topology::{analyse_keeping, Options};
 
@@ -75,11 +75,8 @@ fn repair(format: Format, path: &std::path::Path, meshes: &[meshvet::Mesh], cx: 
         .collect();
     if plans.iter().any(Option::is_some) {
         let out = folder().join("copy").join(path.file_name().expect("a file name"));
-        let retained = match (retained, meshes) {
-            (Some(r), [mesh]) => Some((mesh, r)),
-            _ => None,
-        };
+        let read = ScanRead { meshes, retained };
         // A copy that cannot be written is an error row, not a finding; a panic is.
-        let _ = write_copy(path, format, &plans, &out, cx, retained);
+        let _ = write_copy(path, format, &plans, &out, cx, Some(read));
     }
 }
