@@ -296,6 +296,10 @@ pub fn plan_with(mesh: &Mesh, options: &Options, built: Option<Built>) -> Plan {
                 "would close a flat open surface into a shell with no volume",
             ),
             (fill.crossing, "would cross the rest of the surface"),
+            (
+                fill.unchecked,
+                "the faces near it are too many to check that the fill would not cross them",
+            ),
         ] {
             if n > 0 {
                 not_repairable.push(format!("{n} hole{} left open: filling {why}", plural(n)));
@@ -393,6 +397,8 @@ struct Work<'a> {
     unsplittable: FxHashSet<u32>,
     /// Non-manifold edges left after splitting (a face on them could not be cut loose).
     edges_left: usize,
+    /// How far the search for fills that cross the surface goes (the analysis's default).
+    fill_search: Search,
 }
 
 impl<'a> Work<'a> {
@@ -435,6 +441,7 @@ impl<'a> Work<'a> {
             copies_of: FxHashMap::default(),
             unsplittable: FxHashSet::default(),
             edges_left: 0,
+            fill_search: Search::default(),
         }
     }
 
@@ -1212,12 +1219,24 @@ impl<'a> Work<'a> {
             fill.faces -= f.triangles.len();
             fill.flat += 1;
         }
-        for k in self.crossing_fills(table, &filled, &new_triangles, &keep) {
+        // A fill is kept only when the search shows it meets nothing: when the search stopped
+        // at its budget, every fill still kept is left open.
+        let (crossing, stopped) = self.crossing_fills(table, &filled, &new_triangles, &keep);
+        let unchecked: Vec<usize> = if stopped {
+            (0..filled.len())
+                .filter(|&k| keep[filled[k].triangles.clone()].contains(&true))
+                .filter(|k| !crossing.contains(k))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        fill.crossing = crossing.len();
+        fill.unchecked = unchecked.len();
+        for k in crossing.into_iter().chain(unchecked) {
             let f = &filled[k];
             keep[f.triangles.clone()].fill(false);
             fill.holes -= 1;
             fill.faces -= f.triangles.len();
-            fill.crossing += 1;
         }
         if keep.contains(&false) {
             let mut i = 0;
@@ -1232,16 +1251,17 @@ impl<'a> Work<'a> {
     }
 
     /// The fills (indices into `filled`) not yet dropped (`keep`) whose faces meet the surface or
-    /// another fill: a fill that crosses the rest of the mesh makes a new defect, not a repair.
+    /// another fill (a fill that crosses the rest of the mesh makes a new defect, not a repair),
+    /// and whether the search stopped at its budget (then others may meet too).
     fn crossing_fills(
         &self,
         table: &CornerTable,
         filled: &[Filled],
         new_triangles: &[Triangle],
         keep: &[bool],
-    ) -> Vec<usize> {
+    ) -> (Vec<usize>, bool) {
         if !keep.contains(&true) {
-            return Vec::new();
+            return (Vec::new(), false);
         }
         // Only a face whose box overlaps a fill's can meet it: the search runs on those faces
         // and the kept fills, not on the whole surface again (on a 1M-face mesh with a few holes,
@@ -1259,7 +1279,7 @@ impl<'a> Work<'a> {
             .collect();
         let boxes: Vec<_> = fills.iter().map(|&(_, w)| box_of(w)).collect();
         let Some(near) = Near::new(&boxes) else {
-            return Vec::new();
+            return (Vec::new(), false);
         };
         let mut faces = Vec::new();
         let mut number = Vec::new();
@@ -1293,16 +1313,17 @@ impl<'a> Work<'a> {
             &|_| 0,
             bound,
             Some(&number),
-            &Search::default(),
+            &self.fill_search,
         );
-        (0..filled.len())
+        let crossing = (0..filled.len())
             .filter(|&k| {
                 filled[k]
                     .triangles
                     .clone()
                     .any(|i| keep[i] && met.involves(nt + i as u32))
             })
-            .collect()
+            .collect();
+        (crossing, met.stopped)
     }
 
     /// Whether every vertex of the faces reachable from the hole's border face through manifold
@@ -1510,6 +1531,9 @@ struct Fill {
     flat: usize,
     /// Loops whose fill would cross the rest of the surface (or another fill).
     crossing: usize,
+    /// Loops whose fill could not be checked against the surface: the search for faces that
+    /// meet stopped at its budget among the faces near the fills.
+    unchecked: usize,
     /// Loops through a corner of a face with an invalid vertex that the repair keeps.
     invalid: usize,
 }
@@ -1644,4 +1668,51 @@ fn components(table: &CornerTable) -> Vec<u32> {
             number[root]
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit box without its top (one hole of four edges, at z = 1) and a pile of 400 long
+    /// slivers beside its top edge at x = 1, in parallel planes `y - 0.6 z = c`: each runs from
+    /// `(1.7, y, 0.5)` to `(0.7, y + 0.6, 1.5)`, crossing z = 1 at x = 1.2 (beyond the top) and
+    /// x = 1 at z = 1.2 (above the wall), so none meets the box, the fill or another sliver, but
+    /// every sliver's box overlaps the fill's and every other's: 79,800 pairs of boxes. With the
+    /// default budget the search finishes and the top is filled; with a budget of one pair a face
+    /// (65,536 pairs, a small mesh counting as 65,536 faces) it stops, and the fill is left open
+    /// as unchecked rather than kept unchecked. Each sliver's own outline would repeat it: blocked.
+    #[test]
+    fn a_fill_the_search_could_not_finish_checking_is_left_open() {
+        let mut positions: Vec<[f64; 3]> = (0..8)
+            .map(|v| [v & 1, (v >> 1) & 1, (v >> 2) & 1].map(f64::from))
+            .collect();
+        let mut triangles: Vec<[u32; 3]> = vec![
+            [0, 2, 3],
+            [0, 3, 1],
+            [0, 1, 5],
+            [0, 5, 4],
+            [1, 3, 7],
+            [1, 7, 5],
+            [3, 2, 6],
+            [3, 6, 7],
+            [2, 0, 4],
+            [2, 4, 6],
+        ];
+        for i in 0..400 {
+            let y = 0.2 + f64::from(i) * 0.0005;
+            let first = positions.len() as u32;
+            positions.extend([[1.7, y, 0.5], [0.7, y + 0.6, 1.5], [1.701, y, 0.5]]);
+            triangles.push([first, first + 1, first + 2]);
+        }
+        let mesh = Mesh::new(positions, triangles);
+        let fill = |pair_budget: u64| {
+            let mut work = Work::new(&mesh, &Options::default(), None);
+            work.fill_search.pair_budget = pair_budget;
+            let fill = work.fill_holes(100);
+            (fill.holes, fill.crossing, fill.unchecked, fill.blocked)
+        };
+        assert_eq!(fill(Search::default().pair_budget), (1, 0, 0, 400));
+        assert_eq!(fill(1), (0, 0, 1, 400));
+    }
 }

@@ -112,7 +112,7 @@ impl Near {
     fn cell(&self, p: [f64; 3]) -> [usize; 3] {
         std::array::from_fn(|k| {
             let [lo, hi] = [self.union[0][k], self.union[1][k]];
-            // NaN never reaches here (the boxes are finite); `as` would send it to cell 0.
+            // `max` turns NaN into `lo`, and an infinite coordinate clamps to the union.
             let x = p[k].max(lo).min(hi);
             (((x - lo) * self.scale[k]) as usize).min(self.cells - 1)
         })
@@ -205,11 +205,13 @@ mod tests {
 
     #[test]
     fn huge_coordinates_do_not_overflow_the_cells() {
-        let near = Near::new(&[
-            [[-1e308; 3], [-1e308; 3]],
-            [[1e308, 1e308, 1e308], [1e308, 1e308, 1e308]],
-        ])
-        .unwrap();
+        // An extent of 2e307 (cells of 6e305) and one of 2e308, which overflows to infinity
+        // (every box then in one cell).
+        let near = Near::new(&[[[-1e307; 3], [-1e307; 3]], [[1e307; 3], [1e307; 3]]]).unwrap();
+        assert!(near.may_overlap([[1e307; 3], [1e308; 3]]));
+        assert!(near.may_overlap([[-1e308; 3], [-1e307; 3]]));
+        assert!(!near.may_overlap([[-1e306; 3], [1e306; 3]]));
+        let near = Near::new(&[[[-1e308; 3], [-1e308; 3]], [[1e308; 3], [1e308; 3]]]).unwrap();
         assert!(near.may_overlap([[1e308; 3], [1e308; 3]]));
         assert!(near.may_overlap([[-1e308; 3], [-1e307; 3]]));
     }

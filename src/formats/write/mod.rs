@@ -66,8 +66,9 @@ pub struct Written {
 
 /// What a scan read of a source whose copy it writes: the meshes its plans were made for, and what
 /// its read kept for the writer ([`super::read_retaining`]; the writer then does not read the
-/// source again). A writer that does read it again refuses the copy when that read differs: the
-/// file changed after the scan read it, and the plans are not for what it holds now.
+/// source again). A writer that does read it again refuses the copy when that read's positions or
+/// triangles differ: the file's geometry changed after the scan read it, and the plans are not for
+/// what it holds now (a change to its other data, normals or materials, is copied as it is now).
 pub struct ScanRead<'a> {
     pub meshes: &'a [Mesh],
     pub retained: Option<super::Retained>,
