@@ -1225,7 +1225,8 @@ impl<'a> Work<'a> {
         let unchecked: Vec<usize> = if stopped {
             (0..filled.len())
                 .filter(|&k| keep[filled[k].triangles.clone()].contains(&true))
-                .filter(|k| !crossing.contains(k))
+                // `crossing` is ascending.
+                .filter(|k| crossing.binary_search(k).is_err())
                 .collect()
         } else {
             Vec::new()

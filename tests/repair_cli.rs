@@ -1411,6 +1411,34 @@ fn repaired_glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     std::fs::read(dir.path().join("fixed/box.glb")).unwrap()
 }
 
+/// What the tests read of a GLB's first primitive: normals, tangents, first UVs and its first
+/// morph target's normal deltas (each empty when absent).
+struct Primitive {
+    normals: Vec<[f32; 3]>,
+    tangents: Vec<[f32; 4]>,
+    uvs: Vec<[f32; 2]>,
+    normal_deltas: Vec<[f32; 3]>,
+}
+
+fn first_primitive(glb: &[u8]) -> Primitive {
+    let gltf = gltf::Gltf::from_slice(glb).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|_| Some(&blob[..]));
+    Primitive {
+        normals: reader.read_normals().unwrap().collect(),
+        tangents: reader.read_tangents().map_or(Vec::new(), |t| t.collect()),
+        uvs: reader
+            .read_tex_coords(0)
+            .map_or(Vec::new(), |t| t.into_f32().collect()),
+        normal_deltas: reader
+            .read_morph_targets()
+            .next()
+            .and_then(|(_, normals, _)| normals)
+            .map_or(Vec::new(), |d| d.collect()),
+    }
+}
+
 /// A vertex copy with a fill's own normal keeps the tangent handedness its vertex is written
 /// with. The open glTF box with tangents (w = 1), a UV of its own per vertex, and its +x side
 /// stored inward: the repair turns that side, negating its normals to (1, 0, 0) and its tangents'
@@ -1421,14 +1449,8 @@ fn repaired_glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
 #[test]
 fn a_copy_with_a_fill_normal_keeps_its_vertex_tangent_handedness() {
     let (doc, bin) = open_box_gltf_with(&|p| p, true);
-    let bytes = repaired_glb(&doc, &bin);
-    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
-    let blob = gltf.blob.clone().unwrap();
-    let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
-    let reader = primitive.reader(|_| Some(&blob[..]));
-    let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
-    let tangents: Vec<[f32; 4]> = reader.read_tangents().unwrap().collect();
-    let uvs: Vec<[f32; 2]> = reader.read_tex_coords(0).unwrap().into_f32().collect();
+    let copy = first_primitive(&repaired_glb(&doc, &bin));
+    let (normals, tangents, uvs) = (copy.normals, copy.tangents, copy.uvs);
     assert_eq!(normals.len(), 24);
     let copies: Vec<usize> = (0..24).filter(|&i| normals[i] == [0.0, 0.0, 1.0]).collect();
     assert_eq!(copies.len(), 4);
@@ -1475,14 +1497,8 @@ fn a_copy_with_a_fill_normal_has_no_morph_normal_delta() {
     let accessor = accessors.len() - 1;
     doc["meshes"][0]["primitives"][0]["targets"] = json!([{"NORMAL": accessor}]);
     doc["buffers"][0]["byteLength"] = json!(bin.len());
-    let bytes = repaired_glb(&doc, &bin);
-    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
-    let blob = gltf.blob.clone().unwrap();
-    let primitive = gltf.meshes().next().unwrap().primitives().next().unwrap();
-    let reader = primitive.reader(|_| Some(&blob[..]));
-    let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
-    let (_, deltas, _) = reader.read_morph_targets().next().unwrap();
-    let deltas: Vec<[f32; 3]> = deltas.unwrap().collect();
+    let copy = first_primitive(&repaired_glb(&doc, &bin));
+    let (normals, deltas) = (copy.normals, copy.normal_deltas);
     assert_eq!((normals.len(), deltas.len()), (24, 24));
     for (n, d) in normals.iter().zip(&deltas) {
         let expected = if *n == [0.0, 0.0, 1.0] {
