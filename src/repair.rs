@@ -806,12 +806,14 @@ impl<'a> Work<'a> {
         };
         // Rounded to f32, as glTF, binary STL and most PLY files store it, so that the copy read
         // back has the very position the plan judged (a sliver shell's volume sign can hang on it),
-        // unless rounding would take back half the move (a fan far smaller than an f32 step).
+        // unless rounding would take back half the move (a fan far smaller than an f32 step) or
+        // leave f32's range (a coordinate beyond 3.4e38 rounds to infinity; such a file stores
+        // f64, and the exact place is kept).
         let place = |step: f64| {
             let exact = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
             let rounded = exact.map(|x| f64::from(x as f32));
             let moved = |p: &[f64; 3]| (0..3).map(|i| (p[i] - origin[i]).powi(2)).sum::<f64>();
-            if 4.0 * moved(&rounded) >= moved(&exact) {
+            if rounded.iter().all(|x| x.is_finite()) && 4.0 * moved(&rounded) >= moved(&exact) {
                 rounded
             } else {
                 exact

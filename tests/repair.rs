@@ -983,3 +983,20 @@ fn a_split_copy_keeps_clear_of_every_fan_of_its_vertex() {
     assert_eq!(p.new_vertices[0].position, [1.5, 0.25, 0.0]);
     assert_eq!(a.nonmanifold_vertices, 0);
 }
+
+/// A bowtie whose coordinates lie far beyond `f32`'s range (1e300): the split's copy is placed a
+/// fraction of the way to its fan's centre, about 1e299 from the origin. Rounded to `f32` it would
+/// be infinite, so the copy keeps its exact `f64` place and stays finite (and apart from O).
+#[test]
+fn a_split_far_beyond_f32_range_places_a_finite_copy() {
+    let mut bowtie = shapes::bowtie();
+    for p in &mut bowtie.positions {
+        *p = p.map(|x| x * 1e300);
+    }
+    let p = plan(&bowtie, &Options::default());
+    assert_eq!(p.summary(), "split-non-manifold-vertices:1");
+    assert_eq!(p.new_vertices.len(), 1);
+    let copy = p.new_vertices[0].position;
+    assert!(copy.iter().all(|x| x.is_finite()), "copy at {copy:?}");
+    assert_ne!(copy, [0.0; 3]);
+}
