@@ -2403,3 +2403,54 @@ fn a_texture_two_libraries_name_is_beside_each_in_the_copy() {
         );
     }
 }
+
+/// The change check covers glTF too, where the meshes live in a buffer file beside the document:
+/// the box's buffer is rewritten after the scan read it, its first position moved from the
+/// origin to (0.5, 0, 0). The document is the same bytes, so only the buffer tells; the copy is
+/// refused. So is a GLB whose binary chunk changed the same way.
+#[test]
+fn a_gltf_whose_buffer_changed_after_the_scan_read_it_is_not_copied() {
+    let moved = |bin: &[u8]| {
+        let mut bin = bin.to_vec();
+        bin[..4].copy_from_slice(&0.5f32.to_le_bytes());
+        bin
+    };
+    let refuse = |source: &Path, format: Format, change: &dyn Fn()| {
+        let root = source.parent().unwrap();
+        let c = cx(root);
+        let meshes = read(source, format, &c).unwrap();
+        assert_eq!(meshes[0].positions[0], [0.0; 3]);
+        let plans = gltf_plans(&meshes);
+        change();
+        let copy = root.join("out").join(source.file_name().unwrap());
+        let scanned = ScanRead {
+            meshes: &meshes,
+            retained: None,
+        };
+        let refused = write_copy(source, format, &plans, &copy, &c, Some(scanned));
+        assert_eq!(
+            refused.map_err(|e| e.to_string()),
+            Err("the file changed after the scan read it: scan it again to repair it".into()),
+            "{format:?}"
+        );
+        assert!(!copy.exists(), "{format:?}");
+    };
+
+    let (_dir, src, _out) = dirs();
+    let (mut doc, bin) = gltf_asset();
+    std::fs::write(src.join("tex/wood.png"), b"png").unwrap();
+    std::fs::write(src.join("box.bin"), &bin).unwrap();
+    doc["buffers"][0]["uri"] = json!("box.bin");
+    let gltf = src.join("box.gltf");
+    std::fs::write(&gltf, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    refuse(&gltf, Format::Gltf, &|| {
+        std::fs::write(src.join("box.bin"), moved(&bin)).unwrap()
+    });
+
+    let (doc, bin) = gltf_asset();
+    let source = src.join("box.glb");
+    std::fs::write(&source, glb(&doc, &bin)).unwrap();
+    refuse(&source, Format::Glb, &|| {
+        std::fs::write(&source, glb(&doc, &moved(&bin))).unwrap()
+    });
+}

@@ -1991,3 +1991,39 @@ fn a_model_part_with_a_byte_order_mark_is_repaired() {
     assert_eq!((b.faces, b.inconsistent_edges), (4, 0));
     assert_eq!(again[2], meshes[2]);
 }
+
+/// A package replaced after the scan read it (the open box's first vertex moved from the origin
+/// to (0.5, 0, 0)) is not copied: the plans were made for what the scan read, and the copy is
+/// refused saying so.
+#[test]
+fn a_package_changed_after_the_scan_read_it_is_not_copied() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bytes, text) = plate();
+    let source = dir.path().join("plate.3mf");
+    std::fs::write(&source, &bytes).unwrap();
+    let meshes = read(&source, Format::ThreeMf, &cx(dir.path())).unwrap();
+    assert_eq!(meshes[0].positions[0], [0.0; 3]);
+    let plans = plans(&meshes);
+    let origin = "<vertex x=\"0\" y=\"0\" z=\"0\"/>";
+    assert!(text.contains(origin));
+    let moved = text.replacen(origin, "<vertex x=\"0.5\" y=\"0\" z=\"0\"/>", 1);
+    std::fs::write(&source, package(&moved)).unwrap();
+    let out = dir.path().join("out/plate.3mf");
+    let scanned = meshvet::formats::write::ScanRead {
+        meshes: &meshes,
+        retained: None,
+    };
+    let refused = meshvet::formats::write::write_copy(
+        &source,
+        Format::ThreeMf,
+        &plans,
+        &out,
+        &cx(dir.path()),
+        Some(scanned),
+    );
+    assert_eq!(
+        refused.map_err(|e| e.to_string()),
+        Err("the file changed after the scan read it: scan it again to repair it".into())
+    );
+    assert!(!out.exists());
+}

@@ -39,6 +39,14 @@ struct Wanted {
 }
 
 impl Files {
+    /// No files.
+    pub fn none() -> Files {
+        Files {
+            of_buffer: Vec::new(),
+            data: Vec::new(),
+        }
+    }
+
     /// Reads the files of the buffers a mesh needs (`needed`: any trouble is an error) and of
     /// those only worth reading when they can be (`optional`: a buffer that cannot be loaded, or
     /// would take the files over the limit, is left out). Data URIs and the GLB chunk are part of

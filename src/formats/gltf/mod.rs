@@ -97,10 +97,23 @@ fn guard<T>(f: impl FnOnce() -> Result<T, ReadError>) -> Result<T, ReadError> {
 
 fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError> {
     let bytes = super::read_bytes(path, &cx.limits)?;
-    let container = container::split(&bytes)?;
+    Ok(read_from(&bytes, path, cx, &BTreeSet::new())?.0)
+}
+
+/// The meshes of the glTF whose bytes `bytes` were read from `path`, and the buffer files read
+/// for them, which hold the buffers in `also` as well (all of whose trouble is an error). The
+/// copy writer reads the file once through this: the meshes it checks against the scan's are
+/// those of the very bytes and buffers it copies.
+pub(crate) fn read_from(
+    bytes: &[u8],
+    path: &Path,
+    cx: &ReadContext,
+    also: &BTreeSet<usize>,
+) -> Result<(Vec<Mesh>, buffers::Files), ReadError> {
+    let container = container::split(bytes)?;
     let root = container::parse_model(container.json)?;
     if root.meshes.is_empty() {
-        return Ok(Vec::new());
+        return Ok((Vec::new(), buffers::Files::none()));
     }
     let mut notes = vec![Vec::new(); root.meshes.len()];
     check_compression(&root, container.is_glb, &mut notes)?;
@@ -127,6 +140,7 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
             }
         }
     }
+    needed.extend(also);
     // GPU instancing SCALE data only refines the mirrored count: its buffers are loaded if they
     // can be, and a failure is a note.
     let mut optional = BTreeSet::new();
@@ -196,7 +210,7 @@ fn read_unguarded(path: &Path, cx: &ReadContext) -> Result<Vec<Mesh>, ReadError>
         .collect::<Result<Vec<Mesh>, ReadError>>()?;
     // Two meshes named `Part` (or one named `#1` and the unnamed mesh 1) get their index.
     super::distinct_names(&mut meshes, |m| format!("#{m}"));
-    Ok(meshes)
+    Ok((meshes, files))
 }
 
 /// Refuses a triangle primitive whose data is compressed by an extension meshvet cannot decode

@@ -35,7 +35,7 @@ use super::{fill_normals, normal_sums, write_atomic, Job, NormalCopies, WriteErr
 use crate::formats::gltf::accessor::{component_name, type_name, Data};
 use crate::formats::gltf::buffers::{self, Location};
 use crate::formats::gltf::container;
-use crate::formats::{read, Format, ReadContext};
+use crate::formats::ReadContext;
 use crate::geometry::dot;
 use crate::mesh::Mesh;
 use crate::repair::Plan;
@@ -65,15 +65,13 @@ fn write_unguarded(
     claims: &Claims,
     scanned: Option<&[Mesh]>,
 ) -> Result<Vec<PathBuf>, WriteError> {
-    let bytes = crate::formats::read_regular(source)?;
+    let bytes = crate::formats::read_bytes(source, &cx.limits)?;
     let container = container::split(&bytes)?;
     let model = container::parse_model(container.json)?;
-    let meshes = read(source, Format::Gltf, cx)?;
-    super::unchanged(scanned, &meshes)?;
-    if plans.len() != meshes.len() {
+    if plans.len() != model.meshes.len() {
         return Err(bad(format!(
             "the file has {} meshes but {} plans were given",
-            meshes.len(),
+            model.meshes.len(),
             plans.len()
         )));
     }
@@ -123,13 +121,10 @@ fn write_unguarded(
             }
         }
     }
-    let files = buffers::Files::read(
-        &model.buffers,
-        &needed,
-        &BTreeSet::new(),
-        location.as_ref(),
-        &cx.limits,
-    )?;
+    // The meshes and every buffer the copy reads, from the bytes above and one read of each
+    // buffer file: what is compared with the scan's meshes is what is copied.
+    let (meshes, files) = crate::formats::gltf::read_from(&bytes, source, cx, &needed)?;
+    super::unchanged(scanned, &meshes)?;
     let mut loaded: Vec<Option<Cow<'_, [u8]>>> = vec![None; model.buffers.len()];
     for &b in &needed {
         if let Some(buffer) = model.buffers.get(b) {
