@@ -277,20 +277,18 @@ fn fitted(mut meshes: Vec<Mesh>) -> Vec<Mesh> {
 }
 
 /// What a reader kept of a file for the writer of its repaired copy, so that the copy is written
-/// without reading and parsing the file a second time ([`read_retaining`]). Each format keeps a
-/// type of its own, which only its writer takes back out (`Retained::take`).
+/// without reading and parsing the file a second time ([`read_retaining`]). Opaque outside the
+/// crate; inside, one variant per format that keeps something, so a writer takes back exactly
+/// what its reader kept, checked when compiling (a type-erased box once let the OBJ writer ask
+/// for the wrong type and silently parse the file again).
 #[derive(Debug)]
-pub struct Retained(Box<dyn std::any::Any + Send>);
+pub struct Retained(pub(crate) Kept);
 
-impl Retained {
-    pub(crate) fn new<T: std::any::Any + Send>(kept: T) -> Retained {
-        Retained(Box::new(kept))
-    }
-
-    /// What was kept, when it is a `T`.
-    pub(crate) fn take<T: std::any::Any>(self) -> Option<Box<T>> {
-        self.0.downcast().ok()
-    }
+/// What each format keeps ([`Retained`]).
+#[derive(Debug)]
+pub(crate) enum Kept {
+    /// OBJ: texture coordinates, normals, polygons and groups.
+    Obj(Box<obj::Detail>),
 }
 
 /// [`read`], also keeping what the writer of a repaired copy needs where reading it again would

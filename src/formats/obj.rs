@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use super::contain::{self, Location, Unresolved};
 use super::text::{self, Binary};
-use super::{Limits, ReadContext, ReadError, Retained, SideFiles};
+use super::{Kept, Limits, ReadContext, ReadError, Retained, SideFiles};
 use crate::geometry::polygon::{self, SplitTally};
 use crate::mesh::Mesh;
 
@@ -37,8 +37,7 @@ pub(crate) fn read_retaining(
     cx: &ReadContext,
 ) -> Result<(Vec<Mesh>, Retained), ReadError> {
     let (meshes, detail) = read_with(path, cx, Some(Box::default()))?;
-    // The `Detail` itself, not its box: the writer takes back exactly this type.
-    Ok((meshes, Retained::new(*detail.unwrap_or_default())))
+    Ok((meshes, Retained(Kept::Obj(detail.unwrap_or_default()))))
 }
 
 /// The material libraries an OBJ file names, found as the reader finds them.

@@ -29,13 +29,14 @@ use super::{
 use crate::formats::contain::{self, Location, Unresolved};
 use crate::formats::obj::{library, library_names, read_full, Detail, NotRead, State};
 use crate::formats::text;
+use crate::formats::{Kept, Retained};
 use crate::mesh::Mesh;
 
 /// Writes the copy and, beside it, its material libraries and textures.
 pub fn write(mut job: Job<'_>) -> Result<Written, WriteError> {
     let kept = match job.read.as_mut() {
         Some(read) => match (read.meshes, read.retained.take()) {
-            ([mesh], Some(retained)) => retained.take::<Detail>().map(|detail| (mesh, detail)),
+            ([mesh], Some(Retained(Kept::Obj(detail)))) => Some((mesh, detail)),
             _ => None,
         },
         None => None,
