@@ -2454,3 +2454,69 @@ fn a_gltf_whose_buffer_changed_after_the_scan_read_it_is_not_copied() {
         std::fs::write(&source, glb(&doc, &moved(&bin))).unwrap()
     });
 }
+
+/// The limit on the bytes a glTF's buffer files give holds for the scan's read and for what the
+/// copy reads besides, each on its own, though the writer now reads both in one pass: mesh 0
+/// takes its positions from `a.bin` and its normals from `b.bin`, mesh 1 its positions from
+/// `c.bin`, 1,000 bytes each, under a limit of 2,000. The scan reads a + c (2,000), the copy of
+/// mesh 0 a + b (2,000): each within it, so the copy is written (counted together, 3,000, it was
+/// refused). With `b.bin` grown to 2,001 bytes the scan still reads it, and the copy is refused,
+/// saying to raise the limit to repair it.
+#[test]
+fn the_buffer_limit_holds_for_the_scan_and_the_copy_each() {
+    let (_dir, src, out) = dirs();
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let file = |mut data: Vec<u8>, size: usize| {
+        data.resize(size, 0);
+        data
+    };
+    let triangle = f32s(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let normals = f32s(&[0.0, 0.0, 1.0].repeat(3));
+    std::fs::write(src.join("a.bin"), file(triangle.clone(), 1000)).unwrap();
+    std::fs::write(src.join("c.bin"), file(triangle, 1000)).unwrap();
+    let accessor = |view: usize| {
+        json!({"bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3",
+               "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 1.0]})
+    };
+    let views: Vec<Value> = (0..3)
+        .map(|b| json!({"buffer": b, "byteLength": 36}))
+        .collect();
+    let source = src.join("s.gltf");
+    let c = ReadContext {
+        root: src.clone(),
+        limits: Limits {
+            max_file_bytes: 2000,
+            ..Limits::default()
+        },
+    };
+    let copy_with_normals_of = |size: usize, name: &str| {
+        std::fs::write(src.join("b.bin"), file(normals.clone(), size)).unwrap();
+        let doc = json!({
+            "asset": {"version": "2.0"},
+            "buffers": [
+                {"uri": "a.bin", "byteLength": 1000},
+                {"uri": "b.bin", "byteLength": size},
+                {"uri": "c.bin", "byteLength": 1000}
+            ],
+            "bufferViews": views,
+            "accessors": [accessor(0), accessor(1), accessor(2)],
+            "meshes": [
+                {"name": "m0", "primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}}]},
+                {"name": "m1", "primitives": [{"attributes": {"POSITION": 2}}]}
+            ],
+            "nodes": [{"mesh": 0}, {"mesh": 1}],
+            "scenes": [{"nodes": [0, 1]}],
+            "scene": 0
+        });
+        std::fs::write(&source, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let meshes = read(&source, Format::Gltf, &c).unwrap();
+        let plans = [Some(identity(&meshes[0])), None];
+        write_repaired(&source, Format::Gltf, &plans, &out.join(name), &c)
+            .map_err(|e| e.to_string())
+    };
+    copy_with_normals_of(1000, "s.gltf").unwrap();
+    assert!(out.join("s.gltf").is_file());
+    let e = copy_with_normals_of(2001, "t.gltf").unwrap_err();
+    assert!(e.contains("besides the scan's add 2001 bytes"), "{e}");
+    assert!(e.contains("config to repair it"), "{e}");
+}

@@ -28,6 +28,8 @@ pub struct Files {
     /// The file each buffer reads (an index into `data`), if it names one that was read.
     of_buffer: Vec<Option<usize>>,
     data: Vec<Vec<u8>>,
+    /// The index in `data` of each file by its real path.
+    index_of: FxHashMap<PathBuf, usize>,
 }
 
 /// A file the buffers name: its real path, how much of it they use, and whether a mesh needs it.
@@ -44,6 +46,7 @@ impl Files {
         Files {
             of_buffer: Vec::new(),
             data: Vec::new(),
+            index_of: FxHashMap::default(),
         }
     }
 
@@ -51,9 +54,14 @@ impl Files {
     /// those only worth reading when they can be (`optional`: a buffer that cannot be loaded, or
     /// would take the files over the limit, is left out). Data URIs and the GLB chunk are part of
     /// the file itself, already within the limit.
+    ///
+    /// `also`: buffers the copy writer needs besides (any trouble is an error), read in the same
+    /// pass. What they add is held to the limit on its own, so that the reader's buffers meet
+    /// the limit exactly as in a scan, and the writer's never less than when it read them apart.
     pub fn read(
         buffers: &[json::Buffer],
         needed: &BTreeSet<usize>,
+        also: &BTreeSet<usize>,
         optional: &BTreeSet<usize>,
         location: Option<&Location>,
         limits: &Limits,
@@ -61,12 +69,14 @@ impl Files {
         let mut of_buffer = vec![None; buffers.len()];
         let mut wanted: Vec<Wanted> = Vec::new();
         let mut index_of: FxHashMap<PathBuf, usize> = FxHashMap::default();
-        let mut total = 0u64;
+        // Bytes charged to the reader's buffers (`needed`, then `optional`) and to the writer's.
+        let mut totals = [0u64; 2];
         let uses = needed
             .iter()
-            .map(|&i| (i, true))
-            .chain(optional.difference(needed).map(|&i| (i, false)));
-        for (index, must) in uses {
+            .map(|&i| (i, true, 0))
+            .chain(optional.difference(needed).map(|&i| (i, false, 0)))
+            .chain(also.difference(needed).map(|&i| (i, true, 1)));
+        for (index, must, pool) in uses {
             let Some(buffer) = buffers.get(index) else {
                 continue; // reported by whoever refers to it
             };
@@ -103,20 +113,29 @@ impl Files {
                 wanted.len() - 1
             });
             let more = bytes.saturating_sub(wanted[file].bytes);
+            let total = &mut totals[pool];
             if total.saturating_add(more) > limits.max_file_bytes {
                 if !must {
                     continue;
                 }
-                return Err(ReadError::new(format!(
-                    "the buffers of this file read {} bytes from {} file(s) (\"{uri}\" is the \
-                     last), over the limit of {} bytes for one file: raise \
-                     limits.max_file_bytes in the config to scan it",
-                    total.saturating_add(more),
-                    wanted.len(),
-                    limits.max_file_bytes
-                )));
+                let total = total.saturating_add(more);
+                let limit = limits.max_file_bytes;
+                return Err(ReadError::new(if pool == 0 {
+                    format!(
+                        "the buffers of this file read {total} bytes from {} file(s) \
+                         (\"{uri}\" is the last), over the limit of {limit} bytes for one \
+                         file: raise limits.max_file_bytes in the config to scan it",
+                        wanted.len()
+                    )
+                } else {
+                    format!(
+                        "the buffers the repaired copy reads besides the scan's add {total} \
+                         bytes (\"{uri}\" is the last), over the limit of {limit} bytes for \
+                         one file: raise limits.max_file_bytes in the config to repair it"
+                    )
+                }));
             }
-            total += more;
+            *total += more;
             let w = &mut wanted[file];
             w.bytes += more;
             w.needed |= must;
@@ -143,7 +162,16 @@ impl Files {
             }
             data.push(bytes);
         }
-        Ok(Files { of_buffer, data })
+        Ok(Files {
+            of_buffer,
+            data,
+            index_of,
+        })
+    }
+
+    /// What was read of the file at `path` (its real path), if it was read.
+    pub fn read_of(&self, path: &std::path::Path) -> Option<&[u8]> {
+        self.index_of.get(path).map(|&i| &self.data[i][..])
     }
 
     /// The bytes behind `loaded` (the buffers by index, as [`load`] gave them): each file read

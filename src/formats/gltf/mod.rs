@@ -140,7 +140,6 @@ pub(crate) fn read_from(
             }
         }
     }
-    needed.extend(also);
     // GPU instancing SCALE data only refines the mirrored count: its buffers are loaded if they
     // can be, and a failure is a note.
     let mut optional = BTreeSet::new();
@@ -163,6 +162,7 @@ pub(crate) fn read_from(
     let files = buffers::Files::read(
         &root.buffers,
         &needed,
+        also,
         &optional,
         location.as_ref(),
         &cx.limits,

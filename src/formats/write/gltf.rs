@@ -196,7 +196,7 @@ fn write_unguarded(
     extend(&mut doc, "accessors", accessors);
     let mut written = Vec::new();
     if let Some(location) = &location {
-        written.extend(copy_external(&mut doc, location, out, claims)?);
+        written.extend(copy_external(&mut doc, location, out, claims, &files)?);
     }
     if glb {
         if !new.is_empty() {
@@ -938,6 +938,7 @@ fn copy_external(
     location: &Location,
     out: &Path,
     claims: &Claims,
+    files: &buffers::Files,
 ) -> Result<Vec<PathBuf>, WriteError> {
     let folder = out.parent().unwrap_or(Path::new(""));
     let mut written = Vec::new();
@@ -976,6 +977,14 @@ fn copy_external(
                 .and_then(|p| p.strip_prefix(&location.folder).ok().map(Path::to_path_buf))
                 .filter(|_| !uri.contains(".."));
             let bytes = super::read_side(&real)?;
+            // A buffer file read for the meshes compared with the scan's must still begin with
+            // what was read: the copy's other meshes keep reading it.
+            if files
+                .read_of(&real)
+                .is_some_and(|read| !bytes.starts_with(read))
+            {
+                return Err(super::changed());
+            }
             if let Some(rel) = below {
                 if claims.side(&rel, &bytes, false).is_ok() {
                     let to = folder.join(&rel);

@@ -160,12 +160,15 @@ pub(crate) fn unchanged(scanned: Option<&[Mesh]>, again: &[Mesh]) -> Result<(), 
             if scanned.len() != again.len()
                 || scanned.iter().zip(again).any(|(a, b)| !same(a, b)) =>
         {
-            Err(WriteError::new(
-                "the file changed after the scan read it: scan it again to repair it",
-            ))
+            Err(changed())
         }
         _ => Ok(()),
     }
+}
+
+/// The refusal of a copy whose source changed after the scan read it.
+pub(crate) fn changed() -> WriteError {
+    WriteError::new("the file changed after the scan read it: scan it again to repair it")
 }
 
 /// [`write_copy`] into a staging folder that stands for the folder the copy finally goes to:
