@@ -278,9 +278,10 @@ fn fitted(mut meshes: Vec<Mesh>) -> Vec<Mesh> {
 
 /// What a reader kept of a file for the writer of its repaired copy, so that the copy is written
 /// without reading and parsing the file a second time ([`read_retaining`]). Opaque outside the
-/// crate; inside, one variant per format that keeps something, so a writer takes back exactly
-/// what its reader kept, checked when compiling (a type-erased box once let the OBJ writer ask
-/// for the wrong type and silently parse the file again).
+/// crate; inside, one variant per format that keeps something, holding the reader's own type,
+/// so that what a writer takes out is what the reader put in, checked when compiling (a
+/// type-erased box once let the OBJ writer ask for the wrong type and silently parse the file
+/// again). A writer handed no variant of its own format reads the file again, as without one.
 #[derive(Debug)]
 pub struct Retained(pub(crate) Kept);
 
