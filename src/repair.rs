@@ -1683,7 +1683,7 @@ mod tests {
     /// x = 1 at z = 1.2 (above the wall), so none meets the box, the fill or another sliver, but
     /// every sliver's box overlaps the fill's and every other's: 79,800 pairs of boxes. With the
     /// default budget the search finishes and the top is filled; with a budget of one pair a face
-    /// (65,536 pairs, a small mesh counting as 65,536 faces) it stops, and the fill is left open
+    /// (8,192 pairs, a small mesh counting as 8,192 faces) it stops, and the fill is left open
     /// as unchecked rather than kept unchecked. Each sliver's own outline would repeat it: blocked.
     #[test]
     fn a_fill_the_search_could_not_finish_checking_is_left_open() {

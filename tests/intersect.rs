@@ -319,8 +319,8 @@ fn pile_of_slivers(n: usize) -> Mesh {
 }
 
 /// The search stops at its budget: past the pairs of faces it may look at (400 slivers make
-/// 79,800 pairs of overlapping boxes, over the 65,536 that a budget of one pair a face allows a
-/// small mesh), and past the pairs of parts it may hold (a budget under 128 holds none, so the
+/// 79,800 pairs of overlapping boxes, over the 8,192 that a budget of one pair a face allows a
+/// small mesh, which counts as 8,192 faces, and over the 65,536 a budget of eight allows), and past the pairs of parts it may hold (a budget under 128 holds none, so the
 /// 200 pages' 19,900 pairs of parts stop it at its first tidy). Within the default budget both
 /// searches finish with the hand-counted answers.
 #[test]
@@ -336,6 +336,10 @@ fn the_search_stops_at_its_budget_and_says_so() {
     let cut = intersections(&slivers, &budget(1));
     assert!(cut.stopped);
     assert_eq!(counts(&cut), (0, 0, 0, 0));
+    // A small mesh's floor is 8,192 faces: eight pairs a face no longer reaches 79,800 pairs
+    // (with a floor of 65,536 faces it allowed 524,288, and a fuzzed 23,000-face pile took 7 s).
+    assert!(intersections(&slivers, &budget(8)).stopped);
+    assert!(!intersections(&slivers, &budget(10)).stopped);
 
     let pages = pages_through_an_axis(200);
     let full = meet(&pages);
