@@ -24,6 +24,7 @@ pub use super::super::contain::Location;
 /// a file is read up to the longest `byteLength` among its buffers. The bytes read from all the
 /// files together are held to `limits.max_file_bytes`, the limit of one file: without that, 100
 /// buffers naming one 20 MB file made 100 copies of it (2 GB) from a 20 KB glTF.
+#[derive(Default)]
 pub struct Files {
     /// The file each buffer reads (an index into `data`), if it names one that was read.
     of_buffer: Vec<Option<usize>>,
@@ -41,15 +42,6 @@ struct Wanted {
 }
 
 impl Files {
-    /// No files.
-    pub fn none() -> Files {
-        Files {
-            of_buffer: Vec::new(),
-            data: Vec::new(),
-            index_of: FxHashMap::default(),
-        }
-    }
-
     /// Reads the files of the buffers a mesh needs (`needed`: any trouble is an error) and of
     /// those only worth reading when they can be (`optional`: a buffer that cannot be loaded, or
     /// would take the files over the limit, is left out). Data URIs and the GLB chunk are part of

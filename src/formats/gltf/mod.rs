@@ -113,7 +113,7 @@ pub(crate) fn read_from(
     let container = container::split(bytes)?;
     let root = container::parse_model(container.json)?;
     if root.meshes.is_empty() {
-        return Ok((Vec::new(), buffers::Files::none()));
+        return Ok((Vec::new(), buffers::Files::default()));
     }
     let mut notes = vec![Vec::new(); root.meshes.len()];
     check_compression(&root, container.is_glb, &mut notes)?;

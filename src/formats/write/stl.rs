@@ -17,7 +17,8 @@ use crate::repair::Plan;
 
 /// Writes the copy, with a note when the source's padding after its binary facets is left out.
 pub fn write(job: Job<'_>) -> Result<Written, WriteError> {
-    let bytes = crate::formats::read_regular(job.source)?;
+    // Read as the reader reads it (its limits), as the PLY and glTF writers do.
+    let bytes = crate::formats::read_bytes(job.source, &job.cx.limits)?;
     let (mesh, solids) = parse_with_solids(&bytes, job.cx)?;
     job.unchanged(std::slice::from_ref(&mesh))?;
     let notes = copy(&bytes, &mesh, &solids, job.single()?, job.out)?;
