@@ -1634,6 +1634,170 @@ fn ply_edges_follow_the_renumbered_vertices_and_unknown_elements_are_left_out() 
     assert!(!meshvet::repair::plan(&again, &Default::default()).changes());
 }
 
+/// Two closed tetrahedra on one vertex (the origin), coordinates 0 and +-10, stored as PLY
+/// `short`s: the repair splits the vertex, and its copy moves a hair into its fan, between
+/// integers. An integer type cannot hold that place (cast, it falls back onto the origin and the
+/// copy read back welds onto it, non-manifold again), so the copy declares the coordinates
+/// `float`, which holds the planned place and every short exactly, and says so in a note. The
+/// plan rounds a split copy's place to f32, so `float` is enough.
+#[test]
+fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
+    let positions = [
+        [0, 0, 0],
+        [10, 0, 0],
+        [0, 10, 0],
+        [0, 0, 10],
+        [-10, 0, 0],
+        [0, -10, 0],
+        [0, 0, -10],
+    ];
+    // Outward faces: the first tetrahedron, then its point reflection with every face reversed.
+    let faces = [
+        [0, 2, 1],
+        [0, 1, 3],
+        [0, 3, 2],
+        [1, 2, 3],
+        [0, 4, 5],
+        [0, 6, 4],
+        [0, 5, 6],
+        [4, 6, 5],
+    ];
+    let header = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex 7\nproperty short x\nproperty short y\n\
+             property short z\nproperty uchar red\nelement face 8\n\
+             property list uchar int vertex_indices\nend_header\n"
+        )
+    };
+    for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
+        let mut bytes = header(format).into_bytes();
+        for (i, p) in positions.iter().enumerate() {
+            match format {
+                "ascii" => {
+                    bytes.extend(format!("{} {} {} {}\n", p[0], p[1], p[2], 200 + i).bytes())
+                }
+                _ => {
+                    for &x in p {
+                        let x = x as i16;
+                        bytes.extend(if format == "binary_big_endian" {
+                            x.to_be_bytes()
+                        } else {
+                            x.to_le_bytes()
+                        });
+                    }
+                    bytes.push(200 + i as u8);
+                }
+            }
+        }
+        for f in faces {
+            match format {
+                "ascii" => bytes.extend(format!("3 {} {} {}\n", f[0], f[1], f[2]).bytes()),
+                _ => {
+                    bytes.push(3);
+                    for v in f {
+                        let v: i32 = v;
+                        bytes.extend(if format == "binary_big_endian" {
+                            v.to_be_bytes()
+                        } else {
+                            v.to_le_bytes()
+                        });
+                    }
+                }
+            }
+        }
+        let (_dir, src, out) = dirs();
+        std::fs::write(src.join("tets.ply"), &bytes).unwrap();
+        let mesh = read(&src.join("tets.ply"), Format::Ply, &cx(&src))
+            .unwrap()
+            .remove(0);
+        let before = meshvet::analyse(&mesh, &Default::default());
+        assert_eq!(before.nonmanifold_vertices, 1, "{format}");
+        let plan = meshvet::repair::plan(&mesh, &Default::default());
+        assert_eq!(plan.summary(), "split-non-manifold-vertices:1", "{format}");
+        let copy = out.join("tets.ply");
+        let written = write_copy(
+            &src.join("tets.ply"),
+            Format::Ply,
+            &[Some(plan)],
+            &copy,
+            &cx(&src),
+            None,
+        )
+        .unwrap();
+        let text = String::from_utf8_lossy(&std::fs::read(&copy).unwrap()).into_owned();
+        let header = text.split("end_header").next().unwrap();
+        assert!(
+            header.contains(
+                "property float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+            ),
+            "{format}: {header}"
+        );
+        assert!(
+            written
+                .notes
+                .iter()
+                .any(|n| n.contains("float in the copy instead of short")),
+            "{format}: {:?}",
+            written.notes
+        );
+        let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
+        assert_eq!(again.positions.len(), 8, "{format}");
+        // Every original vertex is where it was; the copy is off the origin.
+        for p in positions {
+            let p = p.map(f64::from);
+            assert!(again.positions.contains(&p), "{format}: {p:?}");
+        }
+        let after = meshvet::analyse(&again, &Default::default());
+        assert_eq!(after.nonmanifold_vertices, 0, "{format}");
+        assert_eq!(after.shells.len(), 2, "{format}");
+    }
+}
+
+/// A repair that moves no vertex off the integers (a face turned over) keeps a PLY's integer
+/// coordinate types.
+#[test]
+fn a_ply_of_integer_coordinates_stays_integer_when_no_vertex_moves() {
+    let (_dir, src, out) = dirs();
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty int x\nproperty int y\nproperty int z\n\
+         element face 6\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for p in CUBE {
+        ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    // The cube with its first face turned over.
+    let faces = ply_cube_faces(0);
+    let mut lines: Vec<String> = faces.lines().map(str::to_owned).collect();
+    let first: Vec<&str> = lines[0].split(' ').collect();
+    lines[0] = format!("4 {} {} {} {}", first[4], first[3], first[2], first[1]);
+    ply += &(lines.join("\n") + "\n");
+    std::fs::write(src.join("cube.ply"), &ply).unwrap();
+    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    assert!(plan.summary().starts_with("orient"), "{}", plan.summary());
+    let copy = out.join("cube.ply");
+    let written = write_copy(
+        &src.join("cube.ply"),
+        Format::Ply,
+        &[Some(plan)],
+        &copy,
+        &cx(&src),
+        None,
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&copy).unwrap();
+    assert!(
+        text.contains("property int x\nproperty int y\nproperty int z\n"),
+        "{text}"
+    );
+    assert!(written.notes.is_empty(), "{:?}", written.notes);
+    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
+    let after = meshvet::analyse(&again, &Default::default());
+    assert_eq!(after.inconsistent_edges, 0);
+}
+
 /// Header lines whose words are separated by runs of spaces and tabs still get their new counts
 /// (the header text is also checked on its own in `formats::write::ply`'s unit test).
 #[test]

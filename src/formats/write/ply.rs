@@ -8,7 +8,10 @@
 //! normal is far from the fill's own takes a copy of the vertex with the fill's normal. A face
 //! index list whose item type cannot hold the copy's largest vertex number (a `uchar` list once a
 //! split, or a fill's own normal, numbers a vertex copy 256) is declared with the smallest wider
-//! type of its kind, with a note; numbers are never wrapped or cut.
+//! type of its kind, with a note; numbers are never wrapped or cut. Likewise integer vertex
+//! coordinates (`short x`) are declared `float` (or `double`) when a written position lies
+//! between integers, as a split vertex's copy does: cast to the integer type it would fall back
+//! onto its vertex and weld onto it again when read.
 //!
 //! Other elements: one that names vertices by a recognised property (integer scalars `vertex`,
 //! `vertex1`, `vertex2`, ..., `vertex_index`, `vertex_id`; integer lists `vertex_indices`,
@@ -126,6 +129,52 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         }
     }
 
+    // The vertex element as the copy declares it: integer coordinates widened to `float` (or
+    // `double`) where a written position lies between integers (a split's copy moved a hair into
+    // its fan), which an integer type would cut back onto its vertex.
+    let vertex_element = elements.iter().find(|e| e.def.name == "vertex");
+    let mut vertex_def = vertex_element.map(|e| e.def.clone());
+    let mut widened_xyz = Vec::new();
+    if let Some(def) = vertex_def.as_mut() {
+        let positions: Vec<[f64; 3]> = plan
+            .used_vertices
+            .iter()
+            .enumerate()
+            .filter(|(_, &used)| used)
+            .map(|(v, _)| v as u32)
+            .chain(copies.copies.iter().map(|&(v, _)| v))
+            .map(|v| plan.position(mesh, v))
+            .collect();
+        for (k, axis) in ["x", "y", "z"].into_iter().enumerate() {
+            let Some(PropertyType::Scalar(t)) =
+                def.properties.get_mut(axis).map(|p| &mut p.data_type)
+            else {
+                continue;
+            };
+            if positions.iter().all(|p| holds(t, p[k])) {
+                continue;
+            }
+            let wide = if positions.iter().all(|p| holds(&ScalarType::Float, p[k])) {
+                ScalarType::Float
+            } else {
+                ScalarType::Double
+            };
+            widened_xyz.push((axis, type_name(t), wide.clone()));
+            *t = wide;
+        }
+    }
+    if let Some((_, was, wide)) = widened_xyz.first() {
+        let axes: Vec<String> = widened_xyz.iter().map(|(a, ..)| format!("`{a}`")).collect();
+        notes.push(format!(
+            "the PLY vertex coordinate{} {} {} {} in the copy instead of {was}: a split vertex's \
+             copy lies between integer positions",
+            if axes.len() == 1 { "" } else { "s" },
+            axes.join(", "),
+            if axes.len() == 1 { "is" } else { "are" },
+            type_name(wide),
+        ));
+    }
+
     let mut body = Body::new(header.encoding);
     // Each element's new count; `None`: left out of the copy.
     let mut counts: Vec<(String, Option<usize>)> = Vec::new();
@@ -142,6 +191,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         }
         match e.def.name.as_str() {
             "vertex" => {
+                let def = vertex_def.as_ref().unwrap_or(&e.def);
                 let xyz = ["x", "y", "z"].map(|k| slot_of(e, k));
                 let normal = ["nx", "ny", "nz"].map(|k| slot_of(e, k));
                 for (v, &used) in plan.used_vertices.iter().enumerate() {
@@ -168,7 +218,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                             }
                         }
                     }
-                    body.record(&e.def, &record);
+                    body.record(def, &record);
                 }
                 // The copies of vertices that fills' corners take with the fills' own normals.
                 for &(v, n) in &copies.copies {
@@ -181,7 +231,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                             record[at] = if k < 3 { p[k] } else { n[k - 3] };
                         }
                     }
-                    body.record(&e.def, &record);
+                    body.record(def, &record);
                 }
                 counts.push((e.def.name.clone(), Some(kept + copies.copies.len())));
             }
@@ -291,6 +341,9 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     let mut header_text = rewrite_counts(&text, &counts);
     if let Some((key, wide)) = &widened {
         header_text = rewrite_list_item(&header_text, "face", key, wide);
+    }
+    for (axis, _, wide) in &widened_xyz {
+        header_text = rewrite_scalar(&header_text, "vertex", axis, wide);
     }
     let mut out_bytes = header_text.into_bytes();
     out_bytes.extend_from_slice(&body.bytes);
@@ -581,6 +634,22 @@ fn wider(item: &ScalarType, top: u32) -> Option<ScalarType> {
     ladder.iter().find(|t| top <= max(t)).cloned()
 }
 
+/// Whether a property of type `t` holds `v` exactly (an integer type: a whole number in its range).
+fn holds(t: &ScalarType, v: f64) -> bool {
+    let whole = |lo: f64, hi: f64| v.fract() == 0.0 && (lo..=hi).contains(&v);
+    match t {
+        ScalarType::Char => whole(-128.0, 127.0),
+        ScalarType::UChar => whole(0.0, 255.0),
+        ScalarType::Short => whole(-32_768.0, 32_767.0),
+        ScalarType::UShort => whole(0.0, 65_535.0),
+        ScalarType::Int => whole(-2_147_483_648.0, 2_147_483_647.0),
+        ScalarType::UInt => whole(0.0, 4_294_967_295.0),
+        // NaN holds as NaN; a finite value must round trip.
+        ScalarType::Float => v.is_nan() || f64::from(v as f32) == v,
+        ScalarType::Double => true,
+    }
+}
+
 /// A scalar type's name in a PLY header.
 fn type_name(t: &ScalarType) -> &'static str {
     match t {
@@ -606,6 +675,29 @@ fn rewrite_list_item(header: &str, element: &str, property: &str, item: &ScalarT
             ["element", name, ..] => current = name,
             ["property", "list", count, _, name] if current == element && *name == property => {
                 let _ = writeln!(out, "property list {count} {} {name}", type_name(item));
+                continue;
+            }
+            _ => {}
+        }
+        out.push_str(line);
+        out.push('\n');
+    }
+    out
+}
+
+/// The header text with the type of scalar property `property` of element `element` replaced by
+/// `t`.
+fn rewrite_scalar(header: &str, element: &str, property: &str, t: &ScalarType) -> String {
+    let mut out = String::with_capacity(header.len() + 8);
+    let mut current = "";
+    for line in header.lines() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["element", name, ..] => current = name,
+            ["property", kind, name]
+                if current == element && *name == property && *kind != "list" =>
+            {
+                let _ = writeln!(out, "property {} {name}", type_name(t));
                 continue;
             }
             _ => {}
