@@ -20,9 +20,19 @@ fn context(root: PathBuf) -> ReadContext {
     }
 }
 
+/// The per-process folder, once made.
+static DIR: OnceLock<PathBuf> = OnceLock::new();
+
+/// Removes the per-process folder when the fuzzer ends by `exit` (its time or run limit), so runs
+/// leave no folders behind in RAM; a crash keeps it, with the input that crashed.
+extern "C" fn remove_folder() {
+    if let Some(dir) = DIR.get() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
 /// The per-process folder (in RAM when /dev/shm exists), created once; it is the glTF root.
 fn folder() -> &'static PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let shm = PathBuf::from("/dev/shm");
         let base = if shm.is_dir() {
@@ -32,6 +42,8 @@ fn folder() -> &'static PathBuf {
         };
         let dir = base.join(format!("meshvet-fuzz-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("create the fuzz folder");
+        // SAFETY: `atexit` only records the handler, which touches nothing but the folder.
+        unsafe { libc::atexit(remove_folder) };
         dir
     })
 }
