@@ -1736,7 +1736,7 @@ fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
             written
                 .notes
                 .iter()
-                .any(|n| n.contains("float in the copy instead of short")),
+                .any(|n| n.contains("(`x` short -> float, `y` short -> float, `z` short -> float)")),
             "{format}: {:?}",
             written.notes
         );
@@ -1753,8 +1753,130 @@ fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
     }
 }
 
+/// The same two tetrahedra as `float`s, around (1e6, 1e6, 1e6) with edges of 1/16, one `f32`
+/// step there: the plan keeps the split copy's exact place (rounded to `f32` it would fall back
+/// onto its vertex), so the copy declares the coordinates `double` to hold it.
+#[test]
+fn a_split_finer_than_float_steps_declares_the_coordinates_double() {
+    let (_dir, src, out) = dirs();
+    let step = 1.0 / 16.0;
+    let corners = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 7\nproperty float x\nproperty float y\n\
+         property float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for p in corners {
+        let p = p.map(|x: f64| 1e6 + x * step);
+        ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    for f in [
+        [0, 2, 1],
+        [0, 1, 3],
+        [0, 3, 2],
+        [1, 2, 3],
+        [0, 4, 5],
+        [0, 6, 4],
+        [0, 5, 6],
+        [4, 6, 5],
+    ] {
+        ply += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+    }
+    std::fs::write(src.join("tets.ply"), &ply).unwrap();
+    let mesh = read(&src.join("tets.ply"), Format::Ply, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    assert_eq!(plan.summary(), "split-non-manifold-vertices:1");
+    let copy = out.join("tets.ply");
+    let written = write_copy(
+        &src.join("tets.ply"),
+        Format::Ply,
+        &[Some(plan)],
+        &copy,
+        &cx(&src),
+        None,
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&copy).unwrap();
+    assert!(
+        text.contains("property double x\nproperty double y\nproperty double z\n"),
+        "{text}"
+    );
+    assert!(
+        written
+            .notes
+            .iter()
+            .any(|n| n.contains("`x` float -> double")),
+        "{:?}",
+        written.notes
+    );
+    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
+    assert_eq!(again.positions.len(), 8);
+    let after = meshvet::analyse(&again, &Default::default());
+    assert_eq!(after.nonmanifold_vertices, 0);
+}
+
+/// An inside-out cube whose vertices all carry the normal (1, 1, 1) as `uchar`s: the repair turns
+/// the cube outward and the normals pointing against their vertex's faces over, to -1, which a
+/// `uchar` cannot hold (cast, it became 0), so the copy declares them `float`.
+#[test]
+fn a_normal_turned_negative_declares_an_unsigned_normal_float() {
+    let (_dir, src, out) = dirs();
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar nx\nproperty uchar ny\nproperty uchar nz\n\
+         element face 6\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for p in CUBE {
+        ply += &format!("{} {} {} 1 1 1\n", p[0], p[1], p[2]);
+    }
+    for q in QUADS {
+        ply += &format!("4 {} {} {} {}\n", q[3], q[2], q[1], q[0]);
+    }
+    std::fs::write(src.join("cube.ply"), &ply).unwrap();
+    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    assert_eq!(plan.summary(), "flip-inside-out-shells:1(12 faces)");
+    let copy = out.join("cube.ply");
+    let written = write_copy(
+        &src.join("cube.ply"),
+        Format::Ply,
+        &[Some(plan)],
+        &copy,
+        &cx(&src),
+        None,
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&copy).unwrap();
+    assert!(
+        text.contains("property float nx\nproperty float ny\nproperty float nz\n"),
+        "{text}"
+    );
+    assert!(
+        written
+            .notes
+            .iter()
+            .any(|n| n.contains("`nx` uchar -> float")),
+        "{:?}",
+        written.notes
+    );
+    // The corner at the origin: its faces now face (-1, -1, -1).
+    assert!(text.contains("\n0 0 0 -1 -1 -1\n"), "{text}");
+}
+
 /// A repair that moves no vertex off the integers (a face turned over) keeps a PLY's integer
-/// coordinate types.
+/// coordinate types. A regression guard: the copy's types change only where a value
+/// needs it.
 #[test]
 fn a_ply_of_integer_coordinates_stays_integer_when_no_vertex_moves() {
     let (_dir, src, out) = dirs();

@@ -8,10 +8,12 @@
 //! normal is far from the fill's own takes a copy of the vertex with the fill's normal. A face
 //! index list whose item type cannot hold the copy's largest vertex number (a `uchar` list once a
 //! split, or a fill's own normal, numbers a vertex copy 256) is declared with the smallest wider
-//! type of its kind, with a note; numbers are never wrapped or cut. Likewise integer vertex
-//! coordinates (`short x`) are declared `float` (or `double`) when a written position lies
-//! between integers, as a split vertex's copy does: cast to the integer type it would fall back
-//! onto its vertex and weld onto it again when read.
+//! type of its kind, with a note; numbers are never wrapped or cut. Likewise a vertex property
+//! whose type cannot hold a value the copy writes is declared `float` (or `double` where `float`
+//! cannot hold it either), with a note: integer coordinates (`short x`) where a split vertex's copy
+//! lies between integers (cast back, it would fall onto its vertex and weld onto it again when
+//! read), `float` coordinates where a split in a fan finer than `float`'s steps keeps its exact
+//! place, an integer normal given a fill's normal or turned negative.
 //!
 //! Other elements: one that names vertices by a recognised property (integer scalars `vertex`,
 //! `vertex1`, `vertex2`, ..., `vertex_index`, `vertex_id`; integer lists `vertex_indices`,
@@ -93,7 +95,6 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     let items = polygons.items(plan, mesh);
     let (index, kept) = renumber(plan);
     let mut notes = Vec::new();
-    let slot_of = |e: &Element, key: &str| e.def.properties.keys().position(|k| k == key);
     let sums = normal_sums(plan, mesh, |c| Some(c.vertex));
     let copies = normal_copies(&elements, plan, mesh, &sums);
 
@@ -129,50 +130,47 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         }
     }
 
-    // The vertex element as the copy declares it: integer coordinates widened to `float` (or
-    // `double`) where a written position lies between integers (a split's copy moved a hair into
-    // its fan), which an integer type would cut back onto its vertex.
+    // The vertex records the copy writes, then the vertex element as the copy declares it: a
+    // scalar property whose type cannot hold a value written (integer coordinates where a split's
+    // copy moved a hair into its fan; an integer normal given a fill's normal or turned over)
+    // declared `float`, or `double` where `float` cannot hold it either.
     let vertex_element = elements.iter().find(|e| e.def.name == "vertex");
+    let vertex_records = vertex_element.map(|e| vertex_records(e, plan, mesh, &sums, &copies));
     let mut vertex_def = vertex_element.map(|e| e.def.clone());
-    let mut widened_xyz = Vec::new();
-    if let Some(def) = vertex_def.as_mut() {
-        let positions: Vec<[f64; 3]> = plan
-            .used_vertices
-            .iter()
-            .enumerate()
-            .filter(|(_, &used)| used)
-            .map(|(v, _)| v as u32)
-            .chain(copies.copies.iter().map(|&(v, _)| v))
-            .map(|v| plan.position(mesh, v))
-            .collect();
-        for (k, axis) in ["x", "y", "z"].into_iter().enumerate() {
-            let Some(PropertyType::Scalar(t)) =
-                def.properties.get_mut(axis).map(|p| &mut p.data_type)
-            else {
+    if let (Some(def), Some(e), Some(records)) =
+        (vertex_def.as_mut(), vertex_element, &vertex_records)
+    {
+        let mut widened = Vec::new();
+        for (slot, (name, p)) in def.properties.iter_mut().enumerate() {
+            let PropertyType::Scalar(t) = &mut p.data_type else {
                 continue;
             };
-            if positions.iter().all(|p| holds(t, p[k])) {
+            let values = || {
+                (0..records.starts.len() - 1).map(|i| {
+                    let r = records.record(i);
+                    r[scalar_at(e, r, slot)]
+                })
+            };
+            if values().all(|v| holds(t, v)) {
                 continue;
             }
-            let wide = if positions.iter().all(|p| holds(&ScalarType::Float, p[k])) {
+            let wide = if values().all(|v| holds(&ScalarType::Float, v)) {
                 ScalarType::Float
             } else {
                 ScalarType::Double
             };
-            widened_xyz.push((axis, type_name(t), wide.clone()));
+            widened.push(format!("`{name}` {} -> {}", type_name(t), type_name(&wide)));
             *t = wide;
         }
-    }
-    if let Some((_, was, wide)) = widened_xyz.first() {
-        let axes: Vec<String> = widened_xyz.iter().map(|(a, ..)| format!("`{a}`")).collect();
-        notes.push(format!(
-            "the PLY vertex coordinate{} {} {} {} in the copy instead of {was}: a split vertex's \
-             copy lies between integer positions",
-            if axes.len() == 1 { "" } else { "s" },
-            axes.join(", "),
-            if axes.len() == 1 { "is" } else { "are" },
-            type_name(wide),
-        ));
+        if !widened.is_empty() {
+            notes.push(format!(
+                "PLY vertex propert{} declared wider in the copy ({}): the copy writes values the \
+                 source's types cannot hold (a split vertex's copy between integer positions, a \
+                 fill's normal)",
+                if widened.len() == 1 { "y" } else { "ies" },
+                widened.join(", ")
+            ));
+        }
     }
 
     let mut body = Body::new(header.encoding);
@@ -192,46 +190,10 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         match e.def.name.as_str() {
             "vertex" => {
                 let def = vertex_def.as_ref().unwrap_or(&e.def);
-                let xyz = ["x", "y", "z"].map(|k| slot_of(e, k));
-                let normal = ["nx", "ny", "nz"].map(|k| slot_of(e, k));
-                for (v, &used) in plan.used_vertices.iter().enumerate() {
-                    if !used {
-                        continue;
+                if let Some(records) = &vertex_records {
+                    for i in 0..records.starts.len() - 1 {
+                        body.record(def, records.record(i));
                     }
-                    let from = super::original(plan, mesh, v as u32) as usize;
-                    let mut record = e.record(from).to_vec();
-                    let p = plan.position(mesh, v as u32);
-                    for (k, slot) in xyz.iter().enumerate() {
-                        if let Some(s) = slot {
-                            let at = scalar_at(e, &record, *s);
-                            record[at] = p[k];
-                        }
-                    }
-                    if let (Some(sum), [Some(a), Some(b), Some(c)]) =
-                        (sums.get(&(v as u32)), normal)
-                    {
-                        let at = [a, b, c].map(|s| scalar_at(e, &record, s));
-                        let n = at.map(|i| record[i]);
-                        if crate::geometry::dot(n, *sum) < 0.0 {
-                            for i in at {
-                                record[i] = -record[i];
-                            }
-                        }
-                    }
-                    body.record(def, &record);
-                }
-                // The copies of vertices that fills' corners take with the fills' own normals.
-                for &(v, n) in &copies.copies {
-                    let from = super::original(plan, mesh, v) as usize;
-                    let mut record = e.record(from).to_vec();
-                    let p = plan.position(mesh, v);
-                    for (k, slot) in xyz.iter().chain(&normal).enumerate() {
-                        if let Some(s) = slot {
-                            let at = scalar_at(e, &record, *s);
-                            record[at] = if k < 3 { p[k] } else { n[k - 3] };
-                        }
-                    }
-                    body.record(def, &record);
                 }
                 counts.push((e.def.name.clone(), Some(kept + copies.copies.len())));
             }
@@ -342,8 +304,14 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     if let Some((key, wide)) = &widened {
         header_text = rewrite_list_item(&header_text, "face", key, wide);
     }
-    for (axis, _, wide) in &widened_xyz {
-        header_text = rewrite_scalar(&header_text, "vertex", axis, wide);
+    if let (Some(def), Some(e)) = (&vertex_def, vertex_element) {
+        for (name, p) in &def.properties {
+            if p.data_type != e.def.properties[name].data_type {
+                if let PropertyType::Scalar(t) = &p.data_type {
+                    header_text = rewrite_scalar(&header_text, "vertex", name, t);
+                }
+            }
+        }
     }
     let mut out_bytes = header_text.into_bytes();
     out_bytes.extend_from_slice(&body.bytes);
@@ -632,6 +600,75 @@ fn wider(item: &ScalarType, top: u32) -> Option<ScalarType> {
         _ => &[ScalarType::UShort, ScalarType::UInt],
     };
     ladder.iter().find(|t| top <= max(t)).cloned()
+}
+
+/// The copy's vertex records (as an element of `e`'s properties): each used vertex's record at
+/// its planned place, its normal turned to agree with its faces where they turned over, then the
+/// copies of vertices that fills' corners take with the fills' own normals.
+fn vertex_records(
+    e: &Element,
+    plan: &Plan,
+    mesh: &Mesh,
+    sums: &FxHashMap<u32, [f64; 3]>,
+    copies: &NormalCopies,
+) -> Element {
+    let slot_of = |key: &str| e.def.properties.keys().position(|k| k == key);
+    let xyz = ["x", "y", "z"].map(slot_of);
+    let normal = ["nx", "ny", "nz"].map(slot_of);
+    let mut out = Element {
+        def: e.def.clone(),
+        starts: vec![0],
+        values: Vec::new(),
+    };
+    let mut push = |from: u32, p: [f64; 3], normal_of: &dyn Fn(&mut [f64])| {
+        let start = out.values.len();
+        out.values.extend_from_slice(e.record(from as usize));
+        let record = &mut out.values[start..];
+        for (k, slot) in xyz.iter().enumerate() {
+            if let Some(s) = slot {
+                record[scalar_at(e, record, *s)] = p[k];
+            }
+        }
+        normal_of(record);
+        out.starts.push(out.values.len());
+    };
+    let normal_at = |record: &[f64]| match normal {
+        [Some(a), Some(b), Some(c)] => Some([a, b, c].map(|s| scalar_at(e, record, s))),
+        _ => None,
+    };
+    for (v, &used) in plan.used_vertices.iter().enumerate() {
+        if !used {
+            continue;
+        }
+        let v = v as u32;
+        push(
+            super::original(plan, mesh, v),
+            plan.position(mesh, v),
+            &|record| {
+                if let (Some(sum), Some(at)) = (sums.get(&v), normal_at(record)) {
+                    if crate::geometry::dot(at.map(|i| record[i]), *sum) < 0.0 {
+                        for i in at {
+                            record[i] = -record[i];
+                        }
+                    }
+                }
+            },
+        );
+    }
+    for &(v, n) in &copies.copies {
+        push(
+            super::original(plan, mesh, v),
+            plan.position(mesh, v),
+            &|record| {
+                for (k, slot) in normal.iter().enumerate() {
+                    if let Some(s) = slot {
+                        record[scalar_at(e, record, *s)] = n[k];
+                    }
+                }
+            },
+        );
+    }
+    out
 }
 
 /// Whether a property of type `t` holds `v` exactly (an integer type: a whole number in its range).
