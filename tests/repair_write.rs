@@ -1755,11 +1755,11 @@ fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
 
 /// The same two tetrahedra as `float`s, around (1e6, 1e6, 1e6) with edges of 1/16, one `f32`
 /// step there: the plan keeps the split copy's exact place (rounded to `f32` it would fall back
-/// onto its vertex), so the copy declares the coordinates `double` to hold it.
+/// onto its vertex). A binary file declares the coordinates `double` to hold it; an ASCII file
+/// keeps `float`, whose text holds every digit (its values read back as written), so real ASCII
+/// files of decimal `float`s (0.1 is no `f32`) keep their types.
 #[test]
-fn a_split_finer_than_float_steps_declares_the_coordinates_double() {
-    let (_dir, src, out) = dirs();
-    let step = 1.0 / 16.0;
+fn a_split_finer_than_float_steps_declares_binary_coordinates_double() {
     let corners = [
         [0.0, 0.0, 0.0],
         [1.0, 0.0, 0.0],
@@ -1768,16 +1768,9 @@ fn a_split_finer_than_float_steps_declares_the_coordinates_double() {
         [-1.0, 0.0, 0.0],
         [0.0, -1.0, 0.0],
         [0.0, 0.0, -1.0],
-    ];
-    let mut ply = String::from(
-        "ply\nformat ascii 1.0\nelement vertex 7\nproperty float x\nproperty float y\n\
-         property float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n",
-    );
-    for p in corners {
-        let p = p.map(|x: f64| 1e6 + x * step);
-        ply += &format!("{} {} {}\n", p[0], p[1], p[2]);
-    }
-    for f in [
+    ]
+    .map(|p: [f64; 3]| p.map(|x| 1e6 + x / 16.0));
+    let faces: [[i32; 3]; 8] = [
         [0, 2, 1],
         [0, 1, 3],
         [0, 3, 2],
@@ -1786,42 +1779,72 @@ fn a_split_finer_than_float_steps_declares_the_coordinates_double() {
         [0, 6, 4],
         [0, 5, 6],
         [4, 6, 5],
-    ] {
-        ply += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+    ];
+    for format in ["binary_little_endian", "ascii"] {
+        let ascii = format == "ascii";
+        let mut bytes = format!(
+            "ply\nformat {format} 1.0\nelement vertex 7\nproperty float x\nproperty float y\n\
+             property float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        for p in corners {
+            if ascii {
+                bytes.extend(format!("{} {} {}\n", p[0], p[1], p[2]).bytes());
+            } else {
+                for x in p {
+                    bytes.extend((x as f32).to_le_bytes());
+                }
+            }
+        }
+        for f in faces {
+            if ascii {
+                bytes.extend(format!("3 {} {} {}\n", f[0], f[1], f[2]).bytes());
+            } else {
+                bytes.push(3);
+                for v in f {
+                    bytes.extend(v.to_le_bytes());
+                }
+            }
+        }
+        let (_dir, src, out) = dirs();
+        std::fs::write(src.join("tets.ply"), &bytes).unwrap();
+        let mesh = read(&src.join("tets.ply"), Format::Ply, &cx(&src))
+            .unwrap()
+            .remove(0);
+        let plan = meshvet::repair::plan(&mesh, &Default::default());
+        assert_eq!(plan.summary(), "split-non-manifold-vertices:1", "{format}");
+        let copy = out.join("tets.ply");
+        let written = write_copy(
+            &src.join("tets.ply"),
+            Format::Ply,
+            &[Some(plan)],
+            &copy,
+            &cx(&src),
+            None,
+        )
+        .unwrap();
+        let text = String::from_utf8_lossy(&std::fs::read(&copy).unwrap()).into_owned();
+        let kept = if ascii { "float" } else { "double" };
+        assert!(
+            text.contains(&format!(
+                "property {kept} x\nproperty {kept} y\nproperty {kept} z\n"
+            )),
+            "{format}: {text}"
+        );
+        assert_eq!(
+            written
+                .notes
+                .iter()
+                .any(|n| n.contains("`x` float -> double")),
+            !ascii,
+            "{format}: {:?}",
+            written.notes
+        );
+        let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
+        assert_eq!(again.positions.len(), 8, "{format}");
+        let after = meshvet::analyse(&again, &Default::default());
+        assert_eq!(after.nonmanifold_vertices, 0, "{format}");
     }
-    std::fs::write(src.join("tets.ply"), &ply).unwrap();
-    let mesh = read(&src.join("tets.ply"), Format::Ply, &cx(&src))
-        .unwrap()
-        .remove(0);
-    let plan = meshvet::repair::plan(&mesh, &Default::default());
-    assert_eq!(plan.summary(), "split-non-manifold-vertices:1");
-    let copy = out.join("tets.ply");
-    let written = write_copy(
-        &src.join("tets.ply"),
-        Format::Ply,
-        &[Some(plan)],
-        &copy,
-        &cx(&src),
-        None,
-    )
-    .unwrap();
-    let text = std::fs::read_to_string(&copy).unwrap();
-    assert!(
-        text.contains("property double x\nproperty double y\nproperty double z\n"),
-        "{text}"
-    );
-    assert!(
-        written
-            .notes
-            .iter()
-            .any(|n| n.contains("`x` float -> double")),
-        "{:?}",
-        written.notes
-    );
-    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
-    assert_eq!(again.positions.len(), 8);
-    let after = meshvet::analyse(&again, &Default::default());
-    assert_eq!(after.nonmanifold_vertices, 0);
 }
 
 /// An inside-out cube whose vertices all carry the normal (1, 1, 1) as `uchar`s: the repair turns

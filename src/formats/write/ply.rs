@@ -151,10 +151,10 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
                     r[scalar_at(e, r, slot)]
                 })
             };
-            if values().all(|v| holds(t, v)) {
+            if values().all(|v| holds(t, v, header.encoding)) {
                 continue;
             }
-            let wide = if values().all(|v| holds(&ScalarType::Float, v)) {
+            let wide = if values().all(|v| holds(&ScalarType::Float, v, header.encoding)) {
                 ScalarType::Float
             } else {
                 ScalarType::Double
@@ -671,8 +671,11 @@ fn vertex_records(
     out
 }
 
-/// Whether a property of type `t` holds `v` exactly (an integer type: a whole number in its range).
-fn holds(t: &ScalarType, v: f64) -> bool {
+/// Whether a property of type `t` holds `v` exactly in a file of this `encoding`: an integer type a
+/// whole number in its range; `float` in a binary file a value that round trips through `f32`,
+/// and in an ASCII file any value (the text holds every digit of it, and it reads back as
+/// written: the reader parses `float` text to `f64` as it does `double`).
+fn holds(t: &ScalarType, v: f64, encoding: Encoding) -> bool {
     let whole = |lo: f64, hi: f64| v.fract() == 0.0 && (lo..=hi).contains(&v);
     match t {
         ScalarType::Char => whole(-128.0, 127.0),
@@ -682,7 +685,7 @@ fn holds(t: &ScalarType, v: f64) -> bool {
         ScalarType::Int => whole(-2_147_483_648.0, 2_147_483_647.0),
         ScalarType::UInt => whole(0.0, 4_294_967_295.0),
         // NaN holds as NaN; a finite value must round trip.
-        ScalarType::Float => v.is_nan() || f64::from(v as f32) == v,
+        ScalarType::Float => encoding == Encoding::Ascii || v.is_nan() || f64::from(v as f32) == v,
         ScalarType::Double => true,
     }
 }
