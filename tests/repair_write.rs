@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 
-use meshvet::formats::write::{write_copy, write_repaired, ScanRead};
+use meshvet::formats::write::{write_copy, write_repaired, ScanRead, Written};
 use meshvet::formats::{read, Format, Limits, ReadContext};
 use meshvet::repair::{Corner, Kind, NewVertex, Plan, Triangle};
 use meshvet::Mesh;
@@ -1572,7 +1572,6 @@ fn ply_cube_faces(shift: u32) -> String {
 /// `camera` element has only floats: copied as it was.
 #[test]
 fn ply_edges_follow_the_renumbered_vertices_and_unknown_elements_are_left_out() {
-    let (_dir, src, out) = dirs();
     let mut ply = String::from(
         "ply\nformat ascii 1.0\nelement vertex 9\nproperty float x\nproperty float y\nproperty float z\n\
          element face 6\nproperty list uchar int vertex_indices\n\
@@ -1585,23 +1584,7 @@ fn ply_edges_follow_the_renumbered_vertices_and_unknown_elements_are_left_out() 
     }
     ply += &ply_cube_faces(1);
     ply += "1 2 255\n0 4 128\n7 8 64\n5 0.5\n1.5 2.5\n";
-    std::fs::write(src.join("cube.ply"), &ply).unwrap();
-    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
-        .unwrap()
-        .remove(0);
-    let plan = meshvet::repair::plan(&mesh, &Default::default());
-    assert_eq!(plan.summary(), "drop-unreferenced-vertices:1");
-    let copy = out.join("cube.ply");
-    let written = write_copy(
-        &src.join("cube.ply"),
-        Format::Ply,
-        &[Some(plan)],
-        &copy,
-        &cx(&src),
-        None,
-    )
-    .unwrap();
-    let text = std::fs::read_to_string(&copy).unwrap();
+    let (written, text, again) = ply_repaired(ply.as_bytes(), "drop-unreferenced-vertices:1");
     let (header, body) = text.split_once("end_header\n").unwrap();
     assert!(header.contains("element vertex 8\n"), "{header}");
     assert!(header.contains("element edge 2\n"), "{header}");
@@ -1629,9 +1612,98 @@ fn ply_edges_follow_the_renumbered_vertices_and_unknown_elements_are_left_out() 
         written.notes
     );
     // The copy is the clean cube, and repairing it again changes nothing.
-    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
     assert_eq!(again.positions.len(), 8);
     assert!(!meshvet::repair::plan(&again, &Default::default()).changes());
+}
+
+/// Writes `bytes` as a PLY, checks that the repair plans `summary` and writes the copy: its notes,
+/// its bytes as text (lossy for a binary body) and the copy read back.
+fn ply_repaired(bytes: &[u8], summary: &str) -> (Written, String, Mesh) {
+    let (_dir, src, out) = dirs();
+    std::fs::write(src.join("m.ply"), bytes).unwrap();
+    let mesh = read(&src.join("m.ply"), Format::Ply, &cx(&src))
+        .unwrap()
+        .remove(0);
+    let plan = meshvet::repair::plan(&mesh, &Default::default());
+    assert_eq!(plan.summary(), summary);
+    let copy = out.join("m.ply");
+    let written = write_copy(
+        &src.join("m.ply"),
+        Format::Ply,
+        &[Some(plan)],
+        &copy,
+        &cx(&src),
+        None,
+    )
+    .unwrap();
+    let bytes = std::fs::read(&copy).unwrap();
+    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
+    (written, String::from_utf8_lossy(&bytes).into_owned(), again)
+}
+
+/// Two closed tetrahedra on one vertex, `centre + size * c` for the corners `c` below, as a PLY in
+/// `format` (`ascii`, `binary_little_endian`, `binary_big_endian`) with coordinates of `scalar`
+/// type (`short` or `float`) and a `uchar red` property numbering the vertices from 200.
+fn two_tetrahedra_ply(format: &str, scalar: &str, centre: f64, size: f64) -> Vec<u8> {
+    let corners = [
+        [0, 0, 0],
+        [1, 0, 0],
+        [0, 1, 0],
+        [0, 0, 1],
+        [-1, 0, 0],
+        [0, -1, 0],
+        [0, 0, -1],
+    ];
+    // Outward faces: the first tetrahedron, then its point reflection with every face reversed.
+    let faces: [[i32; 3]; 8] = [
+        [0, 2, 1],
+        [0, 1, 3],
+        [0, 3, 2],
+        [1, 2, 3],
+        [0, 4, 5],
+        [0, 6, 4],
+        [0, 5, 6],
+        [4, 6, 5],
+    ];
+    let mut bytes = format!(
+        "ply\nformat {format} 1.0\nelement vertex 7\nproperty {scalar} x\nproperty {scalar} y\n\
+         property {scalar} z\nproperty uchar red\nelement face 8\n\
+         property list uchar int vertex_indices\nend_header\n"
+    )
+    .into_bytes();
+    let big = format == "binary_big_endian";
+    let mut push = |le: &[u8]| {
+        let mut b = le.to_vec();
+        if big {
+            b.reverse();
+        }
+        bytes.extend(b);
+    };
+    for (i, c) in corners.iter().enumerate() {
+        let p = c.map(|x| centre + size * f64::from(x));
+        if format == "ascii" {
+            push(format!("{} {} {} {}\n", p[0], p[1], p[2], 200 + i).as_bytes());
+            continue;
+        }
+        for x in p {
+            match scalar {
+                "short" => push(&(x as i16).to_le_bytes()),
+                _ => push(&(x as f32).to_le_bytes()),
+            }
+        }
+        push(&[200 + i as u8]);
+    }
+    for f in faces {
+        if format == "ascii" {
+            push(format!("3 {} {} {}\n", f[0], f[1], f[2]).as_bytes());
+            continue;
+        }
+        push(&[3]);
+        for v in f {
+            push(&v.to_le_bytes());
+        }
+    }
+    bytes
 }
 
 /// Two closed tetrahedra on one vertex (the origin), coordinates 0 and +-10, stored as PLY
@@ -1642,89 +1714,9 @@ fn ply_edges_follow_the_renumbered_vertices_and_unknown_elements_are_left_out() 
 /// plan rounds a split copy's place to f32, so `float` is enough.
 #[test]
 fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
-    let positions = [
-        [0, 0, 0],
-        [10, 0, 0],
-        [0, 10, 0],
-        [0, 0, 10],
-        [-10, 0, 0],
-        [0, -10, 0],
-        [0, 0, -10],
-    ];
-    // Outward faces: the first tetrahedron, then its point reflection with every face reversed.
-    let faces = [
-        [0, 2, 1],
-        [0, 1, 3],
-        [0, 3, 2],
-        [1, 2, 3],
-        [0, 4, 5],
-        [0, 6, 4],
-        [0, 5, 6],
-        [4, 6, 5],
-    ];
-    let header = |format: &str| {
-        format!(
-            "ply\nformat {format} 1.0\nelement vertex 7\nproperty short x\nproperty short y\n\
-             property short z\nproperty uchar red\nelement face 8\n\
-             property list uchar int vertex_indices\nend_header\n"
-        )
-    };
     for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
-        let mut bytes = header(format).into_bytes();
-        for (i, p) in positions.iter().enumerate() {
-            match format {
-                "ascii" => {
-                    bytes.extend(format!("{} {} {} {}\n", p[0], p[1], p[2], 200 + i).bytes())
-                }
-                _ => {
-                    for &x in p {
-                        let x = x as i16;
-                        bytes.extend(if format == "binary_big_endian" {
-                            x.to_be_bytes()
-                        } else {
-                            x.to_le_bytes()
-                        });
-                    }
-                    bytes.push(200 + i as u8);
-                }
-            }
-        }
-        for f in faces {
-            match format {
-                "ascii" => bytes.extend(format!("3 {} {} {}\n", f[0], f[1], f[2]).bytes()),
-                _ => {
-                    bytes.push(3);
-                    for v in f {
-                        let v: i32 = v;
-                        bytes.extend(if format == "binary_big_endian" {
-                            v.to_be_bytes()
-                        } else {
-                            v.to_le_bytes()
-                        });
-                    }
-                }
-            }
-        }
-        let (_dir, src, out) = dirs();
-        std::fs::write(src.join("tets.ply"), &bytes).unwrap();
-        let mesh = read(&src.join("tets.ply"), Format::Ply, &cx(&src))
-            .unwrap()
-            .remove(0);
-        let before = meshvet::analyse(&mesh, &Default::default());
-        assert_eq!(before.nonmanifold_vertices, 1, "{format}");
-        let plan = meshvet::repair::plan(&mesh, &Default::default());
-        assert_eq!(plan.summary(), "split-non-manifold-vertices:1", "{format}");
-        let copy = out.join("tets.ply");
-        let written = write_copy(
-            &src.join("tets.ply"),
-            Format::Ply,
-            &[Some(plan)],
-            &copy,
-            &cx(&src),
-            None,
-        )
-        .unwrap();
-        let text = String::from_utf8_lossy(&std::fs::read(&copy).unwrap()).into_owned();
+        let bytes = two_tetrahedra_ply(format, "short", 0.0, 10.0);
+        let (written, text, again) = ply_repaired(&bytes, "split-non-manifold-vertices:1");
         let header = text.split("end_header").next().unwrap();
         assert!(
             header.contains(
@@ -1740,11 +1732,9 @@ fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
             "{format}: {:?}",
             written.notes
         );
-        let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
         assert_eq!(again.positions.len(), 8, "{format}");
         // Every original vertex is where it was; the copy is off the origin.
-        for p in positions {
-            let p = p.map(f64::from);
+        for p in [[0.0; 3], [10.0, 0.0, 0.0], [0.0, 0.0, -10.0]] {
             assert!(again.positions.contains(&p), "{format}: {p:?}");
         }
         let after = meshvet::analyse(&again, &Default::default());
@@ -1760,70 +1750,10 @@ fn a_split_in_a_ply_of_integer_coordinates_declares_them_float() {
 /// files of decimal `float`s (0.1 is no `f32`) keep their types.
 #[test]
 fn a_split_finer_than_float_steps_declares_binary_coordinates_double() {
-    let corners = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, -1.0],
-    ]
-    .map(|p: [f64; 3]| p.map(|x| 1e6 + x / 16.0));
-    let faces: [[i32; 3]; 8] = [
-        [0, 2, 1],
-        [0, 1, 3],
-        [0, 3, 2],
-        [1, 2, 3],
-        [0, 4, 5],
-        [0, 6, 4],
-        [0, 5, 6],
-        [4, 6, 5],
-    ];
     for format in ["binary_little_endian", "ascii"] {
         let ascii = format == "ascii";
-        let mut bytes = format!(
-            "ply\nformat {format} 1.0\nelement vertex 7\nproperty float x\nproperty float y\n\
-             property float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n"
-        )
-        .into_bytes();
-        for p in corners {
-            if ascii {
-                bytes.extend(format!("{} {} {}\n", p[0], p[1], p[2]).bytes());
-            } else {
-                for x in p {
-                    bytes.extend((x as f32).to_le_bytes());
-                }
-            }
-        }
-        for f in faces {
-            if ascii {
-                bytes.extend(format!("3 {} {} {}\n", f[0], f[1], f[2]).bytes());
-            } else {
-                bytes.push(3);
-                for v in f {
-                    bytes.extend(v.to_le_bytes());
-                }
-            }
-        }
-        let (_dir, src, out) = dirs();
-        std::fs::write(src.join("tets.ply"), &bytes).unwrap();
-        let mesh = read(&src.join("tets.ply"), Format::Ply, &cx(&src))
-            .unwrap()
-            .remove(0);
-        let plan = meshvet::repair::plan(&mesh, &Default::default());
-        assert_eq!(plan.summary(), "split-non-manifold-vertices:1", "{format}");
-        let copy = out.join("tets.ply");
-        let written = write_copy(
-            &src.join("tets.ply"),
-            Format::Ply,
-            &[Some(plan)],
-            &copy,
-            &cx(&src),
-            None,
-        )
-        .unwrap();
-        let text = String::from_utf8_lossy(&std::fs::read(&copy).unwrap()).into_owned();
+        let bytes = two_tetrahedra_ply(format, "float", 1e6, 1.0 / 16.0);
+        let (written, text, again) = ply_repaired(&bytes, "split-non-manifold-vertices:1");
         let kept = if ascii { "float" } else { "double" };
         assert!(
             text.contains(&format!(
@@ -1840,7 +1770,6 @@ fn a_split_finer_than_float_steps_declares_binary_coordinates_double() {
             "{format}: {:?}",
             written.notes
         );
-        let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
         assert_eq!(again.positions.len(), 8, "{format}");
         let after = meshvet::analyse(&again, &Default::default());
         assert_eq!(after.nonmanifold_vertices, 0, "{format}");
@@ -1852,7 +1781,6 @@ fn a_split_finer_than_float_steps_declares_binary_coordinates_double() {
 /// `uchar` cannot hold (cast, it became 0), so the copy declares them `float`.
 #[test]
 fn a_normal_turned_negative_declares_an_unsigned_normal_float() {
-    let (_dir, src, out) = dirs();
     let mut ply = String::from(
         "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
          property float z\nproperty uchar nx\nproperty uchar ny\nproperty uchar nz\n\
@@ -1864,23 +1792,7 @@ fn a_normal_turned_negative_declares_an_unsigned_normal_float() {
     for q in QUADS {
         ply += &format!("4 {} {} {} {}\n", q[3], q[2], q[1], q[0]);
     }
-    std::fs::write(src.join("cube.ply"), &ply).unwrap();
-    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
-        .unwrap()
-        .remove(0);
-    let plan = meshvet::repair::plan(&mesh, &Default::default());
-    assert_eq!(plan.summary(), "flip-inside-out-shells:1(12 faces)");
-    let copy = out.join("cube.ply");
-    let written = write_copy(
-        &src.join("cube.ply"),
-        Format::Ply,
-        &[Some(plan)],
-        &copy,
-        &cx(&src),
-        None,
-    )
-    .unwrap();
-    let text = std::fs::read_to_string(&copy).unwrap();
+    let (written, text, _) = ply_repaired(ply.as_bytes(), "flip-inside-out-shells:1(12 faces)");
     assert!(
         text.contains("property float nx\nproperty float ny\nproperty float nz\n"),
         "{text}"
@@ -1902,7 +1814,6 @@ fn a_normal_turned_negative_declares_an_unsigned_normal_float() {
 /// needs it.
 #[test]
 fn a_ply_of_integer_coordinates_stays_integer_when_no_vertex_moves() {
-    let (_dir, src, out) = dirs();
     let mut ply = String::from(
         "ply\nformat ascii 1.0\nelement vertex 8\nproperty int x\nproperty int y\nproperty int z\n\
          element face 6\nproperty list uchar int vertex_indices\nend_header\n",
@@ -1916,29 +1827,12 @@ fn a_ply_of_integer_coordinates_stays_integer_when_no_vertex_moves() {
     let first: Vec<&str> = lines[0].split(' ').collect();
     lines[0] = format!("4 {} {} {} {}", first[4], first[3], first[2], first[1]);
     ply += &(lines.join("\n") + "\n");
-    std::fs::write(src.join("cube.ply"), &ply).unwrap();
-    let mesh = read(&src.join("cube.ply"), Format::Ply, &cx(&src))
-        .unwrap()
-        .remove(0);
-    let plan = meshvet::repair::plan(&mesh, &Default::default());
-    assert!(plan.summary().starts_with("orient"), "{}", plan.summary());
-    let copy = out.join("cube.ply");
-    let written = write_copy(
-        &src.join("cube.ply"),
-        Format::Ply,
-        &[Some(plan)],
-        &copy,
-        &cx(&src),
-        None,
-    )
-    .unwrap();
-    let text = std::fs::read_to_string(&copy).unwrap();
+    let (written, text, again) = ply_repaired(ply.as_bytes(), "orient-faces:2");
     assert!(
         text.contains("property int x\nproperty int y\nproperty int z\n"),
         "{text}"
     );
     assert!(written.notes.is_empty(), "{:?}", written.notes);
-    let again = read(&copy, Format::Ply, &cx(&out)).unwrap().remove(0);
     let after = meshvet::analyse(&again, &Default::default());
     assert_eq!(after.inconsistent_edges, 0);
 }

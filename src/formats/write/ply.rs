@@ -302,13 +302,13 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
 
     let mut header_text = rewrite_counts(&text, &counts);
     if let Some((key, wide)) = &widened {
-        header_text = rewrite_list_item(&header_text, "face", key, wide);
+        header_text = retype(&header_text, "face", key, wide);
     }
     if let (Some(def), Some(e)) = (&vertex_def, vertex_element) {
         for (name, p) in &def.properties {
             if p.data_type != e.def.properties[name].data_type {
                 if let PropertyType::Scalar(t) = &p.data_type {
-                    header_text = rewrite_scalar(&header_text, "vertex", name, t);
+                    header_text = retype(&header_text, "vertex", name, t);
                 }
             }
         }
@@ -704,39 +704,21 @@ fn type_name(t: &ScalarType) -> &'static str {
     }
 }
 
-/// The header text with the item type of list property `property` of element `element` replaced
-/// by `item` (its count type kept).
-fn rewrite_list_item(header: &str, element: &str, property: &str, item: &ScalarType) -> String {
+/// The header text with property `property` of element `element` declared with type `t`: a
+/// scalar's type, or a list's item type (its count type kept).
+fn retype(header: &str, element: &str, property: &str, t: &ScalarType) -> String {
     let mut out = String::with_capacity(header.len() + 8);
     let mut current = "";
     for line in header.lines() {
         let words: Vec<&str> = line.split_whitespace().collect();
+        let here = |name: &str| current == element && name == property;
         match words.as_slice() {
             ["element", name, ..] => current = name,
-            ["property", "list", count, _, name] if current == element && *name == property => {
-                let _ = writeln!(out, "property list {count} {} {name}", type_name(item));
+            ["property", "list", count, _, name] if here(name) => {
+                let _ = writeln!(out, "property list {count} {} {name}", type_name(t));
                 continue;
             }
-            _ => {}
-        }
-        out.push_str(line);
-        out.push('\n');
-    }
-    out
-}
-
-/// The header text with the type of scalar property `property` of element `element` replaced by
-/// `t`.
-fn rewrite_scalar(header: &str, element: &str, property: &str, t: &ScalarType) -> String {
-    let mut out = String::with_capacity(header.len() + 8);
-    let mut current = "";
-    for line in header.lines() {
-        let words: Vec<&str> = line.split_whitespace().collect();
-        match words.as_slice() {
-            ["element", name, ..] => current = name,
-            ["property", kind, name]
-                if current == element && *name == property && *kind != "list" =>
-            {
+            ["property", _, name] if here(name) => {
                 let _ = writeln!(out, "property {} {name}", type_name(t));
                 continue;
             }
