@@ -140,7 +140,7 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     if let (Some(def), Some(e), Some(records)) =
         (vertex_def.as_mut(), vertex_element, &vertex_records)
     {
-        let mut widened = Vec::new();
+        let mut retyped = Vec::new();
         for (slot, (name, p)) in def.properties.iter_mut().enumerate() {
             let PropertyType::Scalar(t) = &mut p.data_type else {
                 continue;
@@ -159,16 +159,16 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
             } else {
                 ScalarType::Double
             };
-            widened.push(format!("`{name}` {} -> {}", type_name(t), type_name(&wide)));
+            retyped.push(format!("`{name}` {} -> {}", type_name(t), type_name(&wide)));
             *t = wide;
         }
-        if !widened.is_empty() {
+        if !retyped.is_empty() {
             notes.push(format!(
                 "PLY vertex propert{} declared wider in the copy ({}): the copy writes values the \
-                 source's types cannot hold (a split vertex's copy between integer positions, a \
-                 fill's normal)",
-                if widened.len() == 1 { "y" } else { "ies" },
-                widened.join(", ")
+                 source's types cannot hold, such as a split vertex's copy between integer \
+                 positions or a fill's normal",
+                if retyped.len() == 1 { "y" } else { "ies" },
+                retyped.join(", ")
             ));
         }
     }
