@@ -50,6 +50,11 @@ impl Element {
     fn record(&self, i: usize) -> &[f64] {
         &self.values[self.starts[i]..self.starts[i + 1]]
     }
+
+    /// Every record, in order.
+    fn records(&self) -> impl Iterator<Item = &[f64]> {
+        self.starts.windows(2).map(|w| &self.values[w[0]..w[1]])
+    }
 }
 
 /// Writes the copy, with notes on what it could not keep (elements left out, records dropped).
@@ -137,20 +142,16 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     let vertex_element = elements.iter().find(|e| e.def.name == "vertex");
     let vertex_records = vertex_element.map(|e| vertex_records(e, plan, mesh, &sums, &copies));
     let mut vertex_def = vertex_element.map(|e| e.def.clone());
+    // The properties retyped: name, old type, new type.
+    let mut retyped = Vec::new();
     if let (Some(def), Some(e), Some(records)) =
         (vertex_def.as_mut(), vertex_element, &vertex_records)
     {
-        let mut retyped = Vec::new();
         for (slot, (name, p)) in def.properties.iter_mut().enumerate() {
             let PropertyType::Scalar(t) = &mut p.data_type else {
                 continue;
             };
-            let values = || {
-                (0..records.starts.len() - 1).map(|i| {
-                    let r = records.record(i);
-                    r[scalar_at(e, r, slot)]
-                })
-            };
+            let values = || records.records().map(|r| r[scalar_at(e, r, slot)]);
             if values().all(|v| holds(t, v, header.encoding)) {
                 continue;
             }
@@ -159,18 +160,22 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
             } else {
                 ScalarType::Double
             };
-            retyped.push(format!("`{name}` {} -> {}", type_name(t), type_name(&wide)));
+            retyped.push((name.clone(), type_name(t), wide.clone()));
             *t = wide;
         }
-        if !retyped.is_empty() {
-            notes.push(format!(
-                "PLY vertex propert{} declared wider in the copy ({}): the copy writes values the \
+    }
+    if !retyped.is_empty() {
+        let each: Vec<String> = retyped
+            .iter()
+            .map(|(name, was, wide)| format!("`{name}` {was} -> {}", type_name(wide)))
+            .collect();
+        notes.push(format!(
+            "PLY vertex propert{} declared wider in the copy ({}): the copy writes values the \
                  source's types cannot hold, such as a split vertex's copy between integer \
                  positions or a fill's normal",
-                if retyped.len() == 1 { "y" } else { "ies" },
-                retyped.join(", ")
-            ));
-        }
+            if each.len() == 1 { "y" } else { "ies" },
+            each.join(", ")
+        ));
     }
 
     let mut body = Body::new(header.encoding);
@@ -190,10 +195,8 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
         match e.def.name.as_str() {
             "vertex" => {
                 let def = vertex_def.as_ref().unwrap_or(&e.def);
-                if let Some(records) = &vertex_records {
-                    for i in 0..records.starts.len() - 1 {
-                        body.record(def, records.record(i));
-                    }
+                for record in vertex_records.iter().flat_map(Element::records) {
+                    body.record(def, record);
                 }
                 counts.push((e.def.name.clone(), Some(kept + copies.copies.len())));
             }
@@ -304,14 +307,8 @@ fn copy(bytes: &[u8], mesh: &Mesh, plan: &Plan, out: &Path) -> Result<Vec<String
     if let Some((key, wide)) = &widened {
         header_text = retype(&header_text, "face", key, wide);
     }
-    if let (Some(def), Some(e)) = (&vertex_def, vertex_element) {
-        for (name, p) in &def.properties {
-            if p.data_type != e.def.properties[name].data_type {
-                if let PropertyType::Scalar(t) = &p.data_type {
-                    header_text = retype(&header_text, "vertex", name, t);
-                }
-            }
-        }
+    for (name, _, wide) in &retyped {
+        header_text = retype(&header_text, "vertex", name, wide);
     }
     let mut out_bytes = header_text.into_bytes();
     out_bytes.extend_from_slice(&body.bytes);
