@@ -445,7 +445,8 @@ impl HtmlReport {
                 let sev = u8::from(severity == Severity::Error) + 1;
                 let _ = write!(out, "[{},{sev},{count}]", rule as usize);
             }
-            // Shells: [faces, vertices, genus, volume, depth, cavity, inside-out, oriented].
+            // Shells: [faces, vertices, genus, volume, depth, role (0 solid, 1 cavity, 2 neither),
+            // inside-out, oriented].
             out.push_str("],[");
             for (j, s) in e.shells.iter().enumerate() {
                 if j > 0 {
@@ -462,7 +463,11 @@ impl HtmlReport {
                     s.faces,
                     s.vertices,
                     s.depth,
-                    u8::from(s.role == Role::Cavity),
+                    match s.role {
+                        Role::Solid => 0,
+                        Role::Cavity => 1,
+                        Role::Neither => 2,
+                    },
                     u8::from(s.inside_out),
                     u8::from(s.oriented)
                 );

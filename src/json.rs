@@ -8,7 +8,7 @@
 //! `{rule, severity, count, message}` (worst first, the CSV's `rule:count;...` cells spelt out),
 //! `repairs` an array of `{repair, count, faces}` (`faces`: the faces a `fill-holes` or
 //! `flip-inside-out-shells` added or turned, else `null`), and `shells` the per-shell table
-//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity", inside_out, pinched, meets}` (the
+//! `{faces, holes, genus, volume, depth, role: "solid"|"cavity"|"neither", inside_out, pinched, meets}` (the
 //! CSV's count is its length, less the pinched solids; `meets`: the shells, by index in the table,
 //! whose faces meet this one's). A float that is not finite (an overflowing volume) is `null`, as JSON has no infinity.
 
@@ -92,11 +92,12 @@ fn shell(s: &ShellRow) -> Value {
     })
 }
 
-/// `solid` or `cavity`, as the reports write a shell's role.
+/// `solid`, `cavity` or `neither`, as the reports write a shell's role.
 pub fn role_name(role: Role) -> &'static str {
     match role {
         Role::Solid => "solid",
         Role::Cavity => "cavity",
+        Role::Neither => "neither",
     }
 }
 

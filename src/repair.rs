@@ -880,55 +880,29 @@ impl<'a> Work<'a> {
         let shared = self.current(true);
         let (table, index) = (&shared.0, &shared.1);
         let nt = table.triangle_count();
-        let mut parity: Vec<Option<bool>> = vec![None; nt];
+        let windings = Windings::of(table);
+        // Per patch: its faces and those of odd parity.
+        let mut sizes = vec![[0usize; 2]; windings.orientable.len()];
+        for t in 0..nt {
+            sizes[windings.patch[t] as usize][usize::from(windings.odd[t])] += 1;
+        }
+        // Per orientable patch, the parity whose faces are flipped: the smaller side.
+        let flip_odd: Vec<Option<bool>> = sizes
+            .iter()
+            .zip(&windings.orientable)
+            .map(|(&[even, odd], &orientable)| orientable.then_some(odd <= even))
+            .collect();
+        let non_orientable = windings.orientable.iter().filter(|&&o| !o).count();
         let mut flipped = 0;
-        let mut non_orientable = 0;
-        let mut stack = Vec::new();
-        let mut members = Vec::new();
         // The table's faces flipped, to flip the table with them instead of rebuilding it.
         let mut table_flips = vec![false; nt];
-        for seed in 0..nt {
-            if parity[seed].is_some() {
-                continue;
-            }
-            parity[seed] = Some(false);
-            stack.push(seed as u32);
-            members.clear();
-            let mut orientable = true;
-            while let Some(t) = stack.pop() {
-                members.push(t);
-                let mine = parity[t as usize].unwrap_or(false);
-                for c in 3 * t..3 * t + 3 {
-                    let Some(b) = table.opposite(c) else { continue };
-                    let u = CornerTable::t(b) as usize;
-                    let want = mine ^ !table.is_consistent(c);
-                    match parity[u] {
-                        None => {
-                            parity[u] = Some(want);
-                            stack.push(u as u32);
-                        }
-                        Some(p) => orientable &= p == want,
-                    }
+        if flip {
+            for t in 0..nt {
+                if flip_odd[windings.patch[t] as usize] == Some(windings.odd[t]) {
+                    self.flip(index[t] as usize);
+                    table_flips[t] = true;
+                    flipped += 1;
                 }
-            }
-            if !orientable {
-                non_orientable += 1;
-                continue;
-            }
-            let odd = members
-                .iter()
-                .filter(|&&t| parity[t as usize] == Some(true))
-                .count();
-            let flip_odd = 2 * odd <= members.len();
-            let count = if flip_odd { odd } else { members.len() - odd };
-            if flip && count > 0 {
-                for &t in &members {
-                    if parity[t as usize] == Some(flip_odd) {
-                        self.flip(index[t as usize] as usize);
-                        table_flips[t as usize] = true;
-                    }
-                }
-                flipped += count;
             }
         }
         drop(shared);
@@ -949,9 +923,9 @@ impl<'a> Work<'a> {
     }
 
     /// Flips whole shells whose volume sign is wrong for their nesting depth: `(shells, faces)`.
-    /// Shells are the closed components (after splitting, every component is manifold), all of which
-    /// count for nesting depth as in the analysis; only consistently wound ones have a volume sign
-    /// to act on.
+    /// Shells are the closed components (after splitting, every component is manifold); as in the
+    /// analysis, the orientable ones hold others for nesting depth, and only consistently wound ones
+    /// have a volume sign to act on.
     fn flip_inside_out(&mut self) -> (usize, usize) {
         let shared = self.current(true);
         let (table, index) = (&shared.0, &shared.1);
@@ -982,11 +956,18 @@ impl<'a> Work<'a> {
             sums[comp].add(w.map(|v| self.points[v as usize]), centre);
         }
         let shells: Vec<usize> = (0..count).filter(|&c| shell[c]).collect();
+        // A shell that is not orientable has no inside: no other shell lies in it.
+        let windings = Windings::of(table);
+        let mut orientable = vec![true; count];
+        for (t, &comp) in component.iter().enumerate() {
+            orientable[comp as usize] &= windings.orientable[windings.patch[t] as usize];
+        }
         let geometry: Vec<ShellGeometry> = shells
             .iter()
             .map(|&c| ShellGeometry {
                 bbox: sums[c].bbox,
                 faces: &faces[c],
+                bounds: orientable[c],
             })
             .collect();
         // As in the analysis, shells whose faces meet have no depth against each other (so a
@@ -1641,6 +1622,56 @@ fn plane_of(ring: &[u32], points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3], f6
     let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
     (length > 0.0 && length.is_finite() && size.is_finite())
         .then(|| (normal.map(|x| x / length), centre, size))
+}
+
+/// How the faces of a table can be wound alike: each face's patch (faces linked through manifold
+/// edges) and its parity there (`odd`: flipping it, or every face of the other parity, makes its
+/// edges in the patch consistent), and per patch whether such a winding exists (it is
+/// orientable; a Moebius strip or a Klein bottle is not).
+struct Windings {
+    patch: Vec<u32>,
+    odd: Vec<bool>,
+    orientable: Vec<bool>,
+}
+
+impl Windings {
+    fn of(table: &CornerTable) -> Windings {
+        let nt = table.triangle_count();
+        let mut patch = vec![u32::MAX; nt];
+        let mut odd = vec![false; nt];
+        let mut orientable = Vec::new();
+        let mut stack = Vec::new();
+        for seed in 0..nt {
+            if patch[seed] != u32::MAX {
+                continue;
+            }
+            let id = orientable.len() as u32;
+            patch[seed] = id;
+            stack.push(seed as u32);
+            let mut ok = true;
+            while let Some(t) = stack.pop() {
+                let mine = odd[t as usize];
+                for c in 3 * t..3 * t + 3 {
+                    let Some(b) = table.opposite(c) else { continue };
+                    let u = CornerTable::t(b) as usize;
+                    let want = mine ^ !table.is_consistent(c);
+                    if patch[u] == u32::MAX {
+                        patch[u] = id;
+                        odd[u] = want;
+                        stack.push(u as u32);
+                    } else {
+                        ok &= odd[u] == want;
+                    }
+                }
+            }
+            orientable.push(ok);
+        }
+        Windings {
+            patch,
+            odd,
+            orientable,
+        }
+    }
 }
 
 /// Component of every table triangle, numbered by lowest triangle, linked through edges of any

@@ -176,6 +176,22 @@ fn cavity_facing_out_is_turned_into_the_void() {
     assert_close(a.volume().unwrap(), 7.0);
 }
 
+/// An outward unit cube inside the walls of a projective plane ([`shapes::projective_plane`]; a
+/// ray from the cube crosses them once): the plane is not orientable, so it has no inside and the
+/// cube is a solid at depth 0, already outward. Nothing is repaired: the plane is left as it is (not
+/// orientable), and the cube is not turned to face inwards as if it were a cavity.
+#[test]
+fn a_shell_within_a_non_orientable_one_is_not_turned() {
+    let cube = shapes::cuboid([-0.5, -0.5, 3.5], [0.5, 0.5, 4.5]);
+    let mesh = shapes::merge(&[shapes::projective_plane(), cube]);
+    let p = plan(&mesh, &Options::default());
+    assert_eq!(count(&p, Kind::FlipInsideOutShells), 0, "{}", p.summary());
+    assert_eq!(count(&p, Kind::OrientFaces), 0, "{}", p.summary());
+    let a = analyse(&p.apply(&mesh), &Default::default());
+    assert_eq!((a.solids(), a.cavities(), a.inside_out_shells()), (1, 0, 0));
+    assert_close(a.volume().unwrap(), 1.0);
+}
+
 /// Two unit cubes sharing the edge x = y = 1: that edge has 4 faces. It keeps a consistent pair and
 /// the other cube's faces are cut loose; its two endpoints then have two fans each (one per cube),
 /// so 2 vertices are split. Result: two separate closed cubes (2 shells, V 16, E 36, F 24), no

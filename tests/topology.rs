@@ -529,6 +529,41 @@ fn klein_bottle_is_a_closed_non_orientable_shell() {
     assert_volume(a.volume(), None);
 }
 
+/// [`shapes::projective_plane`] alone, then with a unit cube (outward) centred at `(0, 0, 4)`
+/// inside its pyramid of walls (at height 4.5 the walls are over 4 from the axis; the cube reaches
+/// 0.71). As stored, each side `p_i p_i+1` runs the same way in its wall and its star triangle, and
+/// each diagonal `p_j p_j+2` the same way in both its star triangles: 10 inconsistent edges; the
+/// walls' edges at the apex are consistent. A ray from the cube to far outside crosses the walls once, so by parity alone the cube
+/// would lie inside the plane and be a cavity, wound the wrong way for one. But a non-orientable
+/// shell has no inside: it bounds no solid, is neither solid nor cavity, has no volume and holds no
+/// shell. So the cube is a solid at depth 0 with volume 1, not inside out; the mesh has 2 shells,
+/// 1 solid, 0 cavities, volume 1.
+#[test]
+fn a_non_orientable_shell_is_neither_solid_nor_cavity_and_holds_no_shell() {
+    let alone = run(&shapes::projective_plane());
+    assert_eq!(
+        counts(&alone),
+        Counts {
+            inconsistent_edges: 10,
+            components: 1,
+            shells: 1,
+            ..clean(6, 15, 10)
+        }
+    );
+    assert!(!alone.orientable());
+    assert_eq!(alone.components[0].euler, 1);
+    assert_shells(&alone, &[(0, Role::Neither, None)]);
+    assert_eq!((alone.solids(), alone.cavities()), (0, 0));
+    assert_volume(alone.volume(), None);
+
+    let cube = cuboid([-0.5, -0.5, 3.5], [0.5, 0.5, 4.5]);
+    let a = run(&merge(&[shapes::projective_plane(), cube]));
+    assert_eq!((a.components.len(), a.shell_count()), (2, 2));
+    assert_shells(&a, &[(0, Role::Neither, None), (0, Role::Solid, Some(1.0))]);
+    assert_eq!((a.solids(), a.cavities(), a.inside_out_shells()), (1, 0, 0));
+    assert_volume(a.volume(), Some(1.0));
+}
+
 // ---------------------------------------------------------------------------------------------------
 // Non-manifold configurations
 // ---------------------------------------------------------------------------------------------------

@@ -191,6 +191,7 @@ pub(super) fn encode(outcomes: &[Outcome]) -> io::Result<Vec<u8>> {
             out.push(match s.role {
                 Role::Solid => b's',
                 Role::Cavity => b'c',
+                Role::Neither => b'n',
             });
             out.push(u8::from(s.inside_out));
             out.push(u8::from(s.pinched));
@@ -250,6 +251,7 @@ pub(super) fn decode(payload: &[u8]) -> Option<Vec<Outcome>> {
                     role: match r.u8()? {
                         b's' => Role::Solid,
                         b'c' => Role::Cavity,
+                        b'n' => Role::Neither,
                         _ => return None,
                     },
                     inside_out: r.u8()? == 1,

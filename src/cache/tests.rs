@@ -158,6 +158,30 @@ fn shells_and_every_cell_come_back_exactly() {
     assert_eq!(warm, cold);
 }
 
+/// Each role a shell can have comes back from an entry as it went in (a role the decoder did not
+/// know would make the entry unreadable, and the scan would redo the file every time).
+#[test]
+fn every_shell_role_comes_back() {
+    use crate::report::ShellRow;
+    use crate::topology::Role;
+    let shells: Vec<ShellRow> = [Role::Solid, Role::Cavity, Role::Neither]
+        .into_iter()
+        .enumerate()
+        .map(|(depth, role)| ShellRow {
+            faces: 4,
+            depth,
+            role,
+            ..ShellRow::default()
+        })
+        .collect();
+    let outcome = Outcome {
+        shells: shells.clone(),
+        ..Outcome::default()
+    };
+    let decoded = decode(&encode(&[outcome]).unwrap()).unwrap().remove(0);
+    assert_eq!(decoded.shells, shells);
+}
+
 /// The cells decode as they read back from a CSV file: every field distinct, so a column read
 /// into the wrong field shows.
 #[test]

@@ -1061,6 +1061,7 @@ fn nest(
             .map(|(i, s)| ShellGeometry {
                 bbox: s.bbox,
                 faces: &list[start[i] as usize..start[i + 1] as usize],
+                bounds: s.orientable,
             })
             .collect();
         // A shell that meets another has no depth against it: crossing, neither is inside.
@@ -1071,7 +1072,9 @@ fn nest(
     };
     for (shell, depth) in shells.iter_mut().zip(depth) {
         shell.depth = depth;
-        shell.role = if depth % 2 == 0 {
+        shell.role = if !shell.orientable {
+            Role::Neither
+        } else if depth % 2 == 0 {
             Role::Solid
         } else {
             Role::Cavity
@@ -1082,7 +1085,7 @@ fn nest(
             && match (shell.role, volume) {
                 (Role::Solid, Some(v)) => v < 0.0,
                 (Role::Cavity, Some(v)) => v > 0.0,
-                (_, None) => false,
+                (Role::Neither, _) | (_, None) => false,
             };
     }
 }

@@ -128,6 +128,10 @@ pub enum Role {
     #[default]
     Solid,
     Cavity,
+    /// A shell that is not orientable (a Klein bottle, a projective plane, which in space always
+    /// pass through themselves) has no inside: it bounds neither material nor a void, has no
+    /// volume and holds no other shell.
+    Neither,
 }
 
 /// A closed, manifold component with its place in the nesting
@@ -238,6 +242,7 @@ impl Analysis {
                 sum += match s.role {
                     Role::Solid => v.abs(),
                     Role::Cavity => -v.abs(),
+                    Role::Neither => 0.0,
                 };
             }
         }

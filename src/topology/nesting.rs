@@ -23,6 +23,9 @@ pub(crate) struct ShellGeometry<'a> {
     pub bbox: [[f64; 3]; 2],
     /// Triangles of the shell (indices into the table).
     pub faces: &'a [u32],
+    /// Whether the shell bounds a solid, so that other shells can lie inside it: false for a shell
+    /// that is not orientable, which has no inside (a point's parity against it says nothing).
+    pub bounds: bool,
 }
 
 /// Segment directions: nearly axis-aligned (so the segment's box is thin and prunes most faces), with
@@ -43,7 +46,8 @@ const DIRECTIONS: [[f64; 3]; 6] = [
 const ATTEMPTS: usize = 12;
 
 /// The depth of every shell: how many shells contain it, among those it is `apart` from (shells
-/// whose surfaces meet are never inside one another: parity says nothing about crossing shells).
+/// whose surfaces meet are never inside one another: parity says nothing about crossing shells)
+/// and that bound a solid ([`ShellGeometry::bounds`]).
 pub(crate) fn depths(
     table: &CornerTable,
     points: &[[f64; 3]],
@@ -53,7 +57,10 @@ pub(crate) fn depths(
     let mut depth = vec![0usize; shells.len()];
     let boxes: Vec<[[f64; 3]; 2]> = shells.iter().map(|s| s.bbox).collect();
     boxed_pairs(&boxes, |inner, outer| {
-        if apart(inner, outer) && contains(table, points, &shells[outer], &shells[inner]) {
+        if shells[outer].bounds
+            && apart(inner, outer)
+            && contains(table, points, &shells[outer], &shells[inner])
+        {
             depth[inner] += 1;
         }
     });

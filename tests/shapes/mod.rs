@@ -402,3 +402,26 @@ pub fn klein(n: usize, m: usize) -> Mesh {
     }
     Mesh::new(positions, triangles)
 }
+
+/// The projective plane's six-vertex triangulation, placed in space: the apex `(0, 0, 10)` joined to
+/// the pentagon `(10, 0, 0)`, `(3, 9, 0)`, `(-8, 6, 0)`, `(-8, -6, 0)`, `(3, -9, 0)` (a pyramid
+/// without its base), and the pentagon's five star triangles `i, i+1, i+3` lying over each other
+/// in its plane. V 6, E 15 (5 walls' edges, 5 sides, 5 diagonals, each in two faces), F 10: closed,
+/// chi = 1, so not orientable (a closed orientable surface has an even chi). Like any closed
+/// non-orientable surface in space it passes through itself (here the star triangles overlap).
+pub fn projective_plane() -> Mesh {
+    let positions = vec![
+        [0.0, 0.0, 10.0],
+        [10.0, 0.0, 0.0],
+        [3.0, 9.0, 0.0],
+        [-8.0, 6.0, 0.0],
+        [-8.0, -6.0, 0.0],
+        [3.0, -9.0, 0.0],
+    ];
+    let mut triangles = Vec::new();
+    for i in 0..5u32 {
+        triangles.push([0, 1 + i, 1 + (i + 1) % 5]);
+        triangles.push([1 + i, 1 + (i + 1) % 5, 1 + (i + 3) % 5]);
+    }
+    Mesh::new(positions, triangles)
+}
