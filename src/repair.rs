@@ -957,10 +957,12 @@ impl<'a> Work<'a> {
         }
         let shells: Vec<usize> = (0..count).filter(|&c| shell[c]).collect();
         // A shell that is not orientable has no inside: no other shell lies in it.
-        let windings = Windings::of(table);
         let mut orientable = vec![true; count];
-        for (t, &comp) in component.iter().enumerate() {
-            orientable[comp as usize] &= windings.orientable[windings.patch[t] as usize];
+        if shells.len() > 1 {
+            let windings = Windings::of(table);
+            for (t, &comp) in component.iter().enumerate() {
+                orientable[comp as usize] &= windings.orientable[windings.patch[t] as usize];
+            }
         }
         let geometry: Vec<ShellGeometry> = shells
             .iter()
