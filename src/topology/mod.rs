@@ -156,9 +156,9 @@ pub struct Shell {
     /// position (vertex positions sorted by x, y, z, compared lexicographically), so that no vertex
     /// or face numbering decides the sign. `None` when not orientable.
     pub volume: Option<f64>,
-    /// How many other shells contain this one.
+    /// How many other shells contain this one (only orientable shells contain others).
     pub depth: usize,
-    /// Solid for even depth, cavity for odd.
+    /// Solid for even depth, cavity for odd; neither when not orientable.
     pub role: Role,
     /// Oriented, with a volume sign wrong for its role (solids need positive, cavities negative). A
     /// flat shell (|volume| <= 1e-12 x bbox diagonal cubed) has no sign and is never inside out.
