@@ -1090,6 +1090,70 @@ fn cavity_listed_first_is_still_a_cavity() {
     assert_volume(a.volume(), Some(7.0));
 }
 
+/// A cavity that touches its solid at 16 vertices and reaches inside it through one. The solid: a
+/// bipyramid over a convex ring of 32 integer points at z = 0 (`(k, k^2)` for k = -8..8, then
+/// `(k, 128 - k^2)` for k = 7..-7, counterclockwise), apexes `(0, 64, +-64)`, outward. The cavity:
+/// a pyramid over every second ring point (a convex 16-gon inside the ring, whose sides are chords,
+/// not edges of the solid) with apex `(0, 64, 32)`, wound inward. The two share the 16 points and
+/// nothing else (the 16-gon's plane cuts the solid's inside; its sides touch the ring only at its
+/// corners), so no faces meet. Every vertex of the cavity lies on the solid's surface but the apex,
+/// strictly inside: the cavity is at depth 1, wound as a cavity must be, not inside out. Volumes: a
+/// pyramid is a third of base area times height, so the solid encloses `2/3 * 64 * area(ring)`
+/// and the cavity `1/3 * 32 * area(16-gon)` (areas by the shoelace formula); the mesh encloses
+/// their difference.
+#[test]
+fn a_cavity_touching_its_solid_at_many_vertices_is_still_a_cavity() {
+    let ring: Vec<[f64; 2]> = (-8..=8)
+        .map(|k: i32| [f64::from(k), f64::from(k * k)])
+        .chain(
+            (-7..=7)
+                .rev()
+                .map(|k: i32| [f64::from(k), f64::from(128 - k * k)]),
+        )
+        .collect();
+    assert_eq!(ring.len(), 32);
+    let shoelace = |p: &[[f64; 2]]| {
+        let n = p.len();
+        (0..n)
+            .map(|i| p[i][0] * p[(i + 1) % n][1] - p[(i + 1) % n][0] * p[i][1])
+            .sum::<f64>()
+            .abs()
+            / 2.0
+    };
+    let mut positions: Vec<[f64; 3]> = ring.iter().map(|&[x, y]| [x, y, 0.0]).collect();
+    positions.extend([[0.0, 64.0, 64.0], [0.0, 64.0, -64.0], [0.0, 64.0, 32.0]]);
+    let (top, bottom, apex) = (32u32, 33u32, 34u32);
+    let mut triangles = Vec::new();
+    for j in 0..32u32 {
+        triangles.push([top, j, (j + 1) % 32]);
+        triangles.push([bottom, (j + 1) % 32, j]);
+    }
+    let corners: Vec<u32> = (0..32).step_by(2).collect();
+    // Inward: the base's fan looks up into the pyramid, the sides look in.
+    for i in 1..15 {
+        triangles.push([corners[0], corners[i], corners[i + 1]]);
+    }
+    for i in 0..16 {
+        triangles.push([apex, corners[(i + 1) % 16], corners[i]]);
+    }
+    let a = run(&Mesh::new(positions, triangles));
+    let solid = 2.0 / 3.0 * 64.0 * shoelace(&ring);
+    let hexadecagon: Vec<[f64; 2]> = corners.iter().map(|&i| ring[i as usize]).collect();
+    let cavity = 32.0 / 3.0 * shoelace(&hexadecagon);
+    assert_eq!((a.components.len(), a.shell_count()), (2, 2));
+    assert_eq!(a.self_intersections(), Some(0));
+    assert_eq!(a.intersecting_components(), Some(0));
+    assert_shells(
+        &a,
+        &[
+            (0, Role::Solid, Some(solid)),
+            (1, Role::Cavity, Some(-cavity)),
+        ],
+    );
+    assert_eq!((a.solids(), a.cavities(), a.inside_out_shells()), (1, 1, 0));
+    assert_volume(a.volume(), Some(solid - cavity));
+}
+
 /// Three nested cubes `[0,6]^3` (out), `[1,5]^3` (in), `[2,4]^3` (out).
 ///
 /// V 24, E 54, F 36, chi 6; 3 components and shells. Each lies inside all bigger ones: depths 0, 1,

@@ -42,7 +42,8 @@ const DIRECTIONS: [[f64; 3]; 6] = [
 
 /// How many more distinct vertices of a shell are tried when the first lies on the other shell's
 /// surface, before giving up on a containment test (all of them lying there means the shells
-/// touch, which is not containment).
+/// touch, which is not containment). Vertices the two shells share are passed over without a
+/// test and not counted ([`contains`]).
 const ATTEMPTS: usize = 12;
 
 /// The depth of every shell: how many shells contain it, among those it is `apart` from (shells
@@ -128,7 +129,10 @@ fn contains(
     // The lowest vertex (by x, then y, then z) first: for shells that intersect, "inside" depends on
     // the vertex tested, and choosing it by position makes the answer independent of how faces and
     // vertices are numbered. When it lies on `outer`'s surface, up to `ATTEMPTS` other distinct
-    // vertices follow, in face order.
+    // vertices follow, in face order, leaving out those `outer` has too: where the faces of two
+    // shells do not meet (the only shells whose depth is asked), a vertex of one lies on the
+    // other's surface only where they share it, so any other vertex decides, however many they
+    // share (a fan over points of `outer`'s surface around an apex inside it shares all but one).
     let vertices = || {
         inner
             .faces
@@ -137,22 +141,31 @@ fn contains(
     };
     let lowest = vertices().min_by(|&a, &b| by_position(&points[a as usize], &points[b as usize]));
     let Some(lowest) = lowest else { return false };
+    if let Some(inside) = point_in_solid(table, points, outer, points[lowest as usize]) {
+        return inside;
+    }
+    let mut shared: Vec<u32> = outer
+        .faces
+        .iter()
+        .flat_map(|&t| table.triangles()[t as usize])
+        .collect();
+    shared.sort_unstable();
+    shared.dedup();
     let mut tried: Vec<u32> = Vec::with_capacity(ATTEMPTS + 1);
     tried.push(lowest);
-    let mut others = vertices();
-    loop {
-        let v = *tried.last().expect("the lowest vertex");
+    for v in vertices() {
+        if tried.len() > ATTEMPTS {
+            break;
+        }
+        if tried.contains(&v) || shared.binary_search(&v).is_ok() {
+            continue;
+        }
+        tried.push(v);
         if let Some(inside) = point_in_solid(table, points, outer, points[v as usize]) {
             return inside;
         }
-        if tried.len() > ATTEMPTS {
-            return false;
-        }
-        let Some(v) = others.find(|v| !tried.contains(v)) else {
-            return false;
-        };
-        tried.push(v);
     }
+    false
 }
 
 /// Parity of the crossings of segments from `q` out of the shell; `None` when `q` lies on the shell's
