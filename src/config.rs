@@ -205,6 +205,8 @@ impl Settings {
             drop_unreferenced_vertices: r.drop_unreferenced_vertices
                 && on(Rule::UnreferencedVertex),
             weld_tolerance: self.weld_tolerance,
+            // The format's, set where the copy is planned.
+            single_precision: false,
         }
     }
 
@@ -671,6 +673,7 @@ pair_budget = 7
                 max_hole_edges: 3,
                 drop_unreferenced_vertices: false,
                 weld_tolerance: 0.0,
+                single_precision: false,
             },
             intersections: Some(Search {
                 kept_pairs: 1,

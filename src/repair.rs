@@ -58,6 +58,10 @@ pub struct Options {
     pub drop_unreferenced_vertices: bool,
     /// The weld tolerance of the analysis (copies of split vertices move further than this).
     pub weld_tolerance: f64,
+    /// The copy stores positions as 32-bit floats (STL, glTF): a split vertex's copy then moves
+    /// beyond that rounding at the model's distance from the origin, not only beyond the model's
+    /// size ([`Work::nudge_distance`]).
+    pub single_precision: bool,
 }
 
 impl Default for Options {
@@ -73,6 +77,7 @@ impl Default for Options {
             max_hole_edges: 100,
             drop_unreferenced_vertices: true,
             weld_tolerance: 0.0,
+            single_precision: false,
         }
     }
 }
@@ -571,7 +576,7 @@ impl<'a> Work<'a> {
         }
         let mut edges = None;
         let mut clean = false;
-        let nudge = self.nudge_distance(options.weld_tolerance);
+        let nudge = self.nudge_distance(options.weld_tolerance, options.single_precision);
         let mut last = usize::MAX;
         for _round in 0..8 {
             let shared = self.current(false);
@@ -650,9 +655,12 @@ impl<'a> Work<'a> {
         }
     }
 
-    /// How far a vertex copy moves into its fan: beyond the weld tolerance and beyond the rounding of
-    /// a 32-bit float coordinate (most formats store f32).
-    fn nudge_distance(&self, tolerance: f64) -> f64 {
+    /// How far a vertex copy moves into its fan: 1e-5 of the model's size plus 1e-5 of its
+    /// largest coordinate, beyond the weld tolerance. The coordinate counts in full only for a
+    /// copy stored as 32-bit floats (`single`), whose rounding there the move must clear; for text
+    /// and doubles at most as much as the size, or a model far from the origin would have its
+    /// copies moved up to a quarter of the way into their fans, out of shape.
+    fn nudge_distance(&self, tolerance: f64, single: bool) -> f64 {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         for p in &self.points {
@@ -665,6 +673,11 @@ impl<'a> Work<'a> {
         let magnitude = (0..3)
             .map(|k| lo[k].abs().max(hi[k].abs()))
             .fold(0.0, f64::max);
+        let magnitude = if single {
+            magnitude
+        } else {
+            magnitude.min(diagonal)
+        };
         (3.0 * tolerance)
             .max(1e-5 * (diagonal + magnitude))
             .max(f64::MIN_POSITIVE)
@@ -806,14 +819,22 @@ impl<'a> Work<'a> {
         };
         // Rounded to f32, as glTF, binary STL and most PLY files store it, so that the copy read
         // back has the very position the plan judged (a sliver shell's volume sign can hang on it),
-        // unless rounding would take back half the move (a fan far smaller than an f32 step) or
-        // leave f32's range (a coordinate beyond 3.4e38 rounds to infinity; such a file stores
-        // f64, and the exact place is kept).
+        // unless rounding moves some coordinate by more than half the move (a fan far smaller than
+        // an f32 step, or far from the origin: rounding could drop the move along one axis and
+        // leave the copy in a plane it was meant to leave) or leaves f32's range (a coordinate
+        // beyond 3.4e38 rounds to infinity). Then the exact place is kept: text and f64 formats
+        // hold it, a PLY declares `double`.
         let place = |step: f64| {
             let exact = [0, 1, 2].map(|i| origin[i] + step * to_centre[i]);
             let rounded = exact.map(|x| f64::from(x as f32));
-            let moved = |p: &[f64; 3]| (0..3).map(|i| (p[i] - origin[i]).powi(2)).sum::<f64>();
-            if rounded.iter().all(|x| x.is_finite()) && 4.0 * moved(&rounded) >= moved(&exact) {
+            let half = 0.5
+                * (0..3)
+                    .map(|i| (exact[i] - origin[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+            let faithful =
+                (0..3).all(|i| rounded[i].is_finite() && (rounded[i] - exact[i]).abs() <= half);
+            if faithful {
                 rounded
             } else {
                 exact

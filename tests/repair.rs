@@ -192,6 +192,70 @@ fn a_shell_within_a_non_orientable_one_is_not_turned() {
     assert_close(a.volume().unwrap(), 1.0);
 }
 
+/// Two unit right tetrahedra on one vertex, mirrored through it (each encloses 1/6, together 1/3),
+/// placed far from the origin. The vertex is split: its copy moves 1e-5 of the model's size (its
+/// box's diagonal is sqrt(12), so 3.5e-5) into its fan, which changes the volume by less than that
+/// move times the fan's area (under 1e-4), along each axis. Far from the origin the move once
+/// grew with the distance (1e-5 of the largest coordinate, up to a quarter of the way into the
+/// fan: at x = 1e5 the volume fell to 0.291), and was rounded to f32 even where that dropped it
+/// along an axis (at x = 1e5, f32's step is 1/128: the copy stayed at x = 1e5).
+#[test]
+fn a_split_far_from_the_origin_moves_the_copy_a_hair() {
+    for offset in [
+        [1e5, 0.0, 0.0],
+        [0.0, 0.0, 16_777_216.0],
+        [-3e7, 2e6, 123_456.789],
+    ] {
+        let one = shapes::tetrahedron();
+        // Mirrored through the origin, which turns its faces inward: wound back outward.
+        let mirrored = shapes::flipped(&Mesh::new(
+            one.positions.iter().map(|p| p.map(|x| -x)).collect(),
+            one.triangles.clone(),
+        ));
+        let both = shapes::merge(&[one, mirrored]);
+        let mesh = Mesh::new(
+            both.positions
+                .iter()
+                .map(|p| std::array::from_fn(|k| p[k] + offset[k]))
+                .collect(),
+            both.triangles.clone(),
+        );
+        let (p, out, a) = repaired(&mesh);
+        assert_eq!(p.summary(), "split-non-manifold-vertices:1", "{offset:?}");
+        assert_eq!(
+            (a.nonmanifold_vertices, a.shell_count()),
+            (0, 2),
+            "{offset:?}"
+        );
+        // The one position of the copy that the source does not have: the shared vertex's copy.
+        let new: Vec<&[f64; 3]> = out
+            .positions
+            .iter()
+            .filter(|q| !mesh.positions.contains(q))
+            .collect();
+        assert_eq!(new.len(), 1, "{offset:?}");
+        let moved = (0..3)
+            .map(|k| (new[0][k] - offset[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            moved > 0.0 && moved < 1e-4,
+            "{offset:?}: the copy moved {moved}"
+        );
+        // Its fan lies towards +x, +y and +z of the vertex (or -x, -y, -z): it moves along each.
+        assert!(
+            (0..3).all(|k| new[0][k] != offset[k]),
+            "{offset:?}: the copy {:?} did not move along every axis",
+            new[0]
+        );
+        let volume = a.volume().unwrap();
+        assert!(
+            (volume - 1.0 / 3.0).abs() < 1e-4,
+            "{offset:?}: volume {volume}"
+        );
+    }
+}
+
 /// Two unit cubes sharing the edge x = y = 1: that edge has 4 faces. It keeps a consistent pair and
 /// the other cube's faces are cut loose; its two endpoints then have two fans each (one per cube),
 /// so 2 vertices are split. Result: two separate closed cubes (2 shells, V 16, E 36, F 24), no

@@ -87,7 +87,10 @@ pub fn repair_file(
     settings: &Settings,
     planner: &dyn Fn(&Mesh, &Options, Option<Built>) -> Plan,
 ) -> Vec<Repaired> {
-    let options = settings.repair_options();
+    let options = crate::repair::Options {
+        single_precision: matches!(format, Format::Stl | Format::Gltf | Format::Glb),
+        ..settings.repair_options()
+    };
     let mut repaired = vec![Repaired::default(); meshes.len()];
     let mut plans: Vec<Option<Plan>> = Vec::with_capacity(meshes.len());
     // Per mesh whose repair was planned: what the plan could not repair, and the faces that meet
