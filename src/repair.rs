@@ -58,9 +58,9 @@ pub struct Options {
     pub drop_unreferenced_vertices: bool,
     /// The weld tolerance of the analysis (copies of split vertices move further than this).
     pub weld_tolerance: f64,
-    /// The copy stores positions as 32-bit floats (STL, glTF): a split vertex's copy then moves
-    /// beyond that rounding at the model's distance from the origin, not only beyond the model's
-    /// size ([`Work::nudge_distance`]).
+    /// The copy stores positions as 32-bit floats (STL, glTF; each format says so in its entry of
+    /// the format table): a split vertex's copy then moves beyond that rounding at the model's
+    /// largest coordinate, however far that is beyond the model's size.
     pub single_precision: bool,
 }
 

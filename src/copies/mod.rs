@@ -88,7 +88,7 @@ pub fn repair_file(
     planner: &dyn Fn(&Mesh, &Options, Option<Built>) -> Plan,
 ) -> Vec<Repaired> {
     let options = crate::repair::Options {
-        single_precision: matches!(format, Format::Stl | Format::Gltf | Format::Glb),
+        single_precision: format.entry().single_precision,
         ..settings.repair_options()
     };
     let mut repaired = vec![Repaired::default(); meshes.len()];

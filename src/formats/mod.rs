@@ -48,6 +48,9 @@ pub(crate) struct Entry {
     pub write: fn(write::Job<'_>) -> Result<write::Written, write::WriteError>,
     /// The other files a file of this format names (`None`: it names none).
     pub side_files: Option<SideFiles>,
+    /// Its copies store positions as 32-bit floats (STL, glTF; an ASCII STL is taken as binary):
+    /// a split vertex's copy must clear their rounding ([`crate::repair::Options::single_precision`]).
+    pub single_precision: bool,
 }
 
 type Reader = fn(&Path, &ReadContext) -> Result<Vec<Mesh>, ReadError>;
@@ -73,6 +76,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         read_retaining: Some(obj::read_retaining),
         write: write::obj::write,
         side_files: Some(obj::SIDE_FILES),
+        single_precision: false,
     },
     Entry {
         format: Format::Gltf,
@@ -82,6 +86,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         read_retaining: None,
         write: write::gltf::write,
         side_files: Some(gltf::SIDE_FILES),
+        single_precision: true,
     },
     Entry {
         format: Format::Glb,
@@ -91,6 +96,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         read_retaining: None,
         write: write::gltf::write,
         side_files: Some(gltf::SIDE_FILES),
+        single_precision: true,
     },
     Entry {
         format: Format::Stl,
@@ -100,6 +106,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         read_retaining: None,
         write: write::stl::write,
         side_files: None,
+        single_precision: true,
     },
     Entry {
         format: Format::Ply,
@@ -109,6 +116,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         read_retaining: None,
         write: write::ply::write,
         side_files: None,
+        single_precision: false,
     },
     Entry {
         format: Format::Off,
@@ -118,6 +126,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         read_retaining: None,
         write: write::off::write,
         side_files: None,
+        single_precision: false,
     },
     Entry {
         format: Format::ThreeMf,
@@ -128,6 +137,7 @@ pub(crate) const FORMATS: [Entry; 7] = [
         write: write::threemf::write,
         // A package is one file: its parts are inside it.
         side_files: None,
+        single_precision: false,
     },
 ];
 
